@@ -1,0 +1,194 @@
+"""Validation of a loaded :class:`GraphSpec` against the installed plugins, and building
+the :class:`Network` an executor runs. Every problem is collected, none stops the scan."""
+
+from __future__ import annotations
+
+import fnmatch
+from typing import TYPE_CHECKING, Any
+
+from .component import Component, Input, Output
+from .network import CycleError, Network
+from .registry import Registry
+
+if TYPE_CHECKING:
+    from .graph import GraphSpec, Problem
+
+__all__ = ["validate", "build", "to_dot", "RECORDER_TYPE", "resolve_record"]
+
+RECORDER_TYPE = "io.Recorder"
+RECORDER_ID = "record"
+
+
+def _compatible(out_t: type, in_t: type) -> bool:
+    return in_t is object or out_t is object or (isinstance(out_t, type) and issubclass(out_t, in_t))
+
+
+def _tname(t: type) -> str:
+    return getattr(t, "__name__", str(t))
+
+
+def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> dict[str, tuple[type[Component], dict, dict[str, Input], dict[str, Output]]]:
+    from .graph import Problem, closest
+
+    out: dict[str, Any] = {}
+    for c in spec.components.values():
+        cls = registry.components.get(c.type)
+        if cls is None:
+            hint = closest(c.type, registry.components, n=3)
+            problems.append(Problem(c.loc, f"component '{c.id}': unknown type '{c.type}'"
+                                    + (f" (closest installed: {hint})" if hint else
+                                       f" (installed: {', '.join(sorted(registry.components)) or 'none'})")))
+            continue
+        values, bad = cls.validate_params(c.params)
+        for k, msg in bad.items():
+            problems.append(Problem(c.param_locs.get(k, c.loc), f"component '{c.id}' ({c.type}): parameter '{k}': {msg}"))
+        if bad:  # still check its connections against the class's own declarations
+            out[c.id] = (cls, values, dict(cls.__inputs__), dict(cls.__outputs__))
+            continue
+        try:
+            ins, outs = cls.declare_ports(values)
+        except Exception as e:
+            problems.append(Problem(c.loc, f"component '{c.id}' ({c.type}): {e}"))
+            continue
+        out[c.id] = (cls, values, ins, outs)
+    return out
+
+
+def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], problems: list[Problem]) -> dict[str, str]:
+    """``record.streams`` patterns -> {topic: "component.port"} (topic is ``component/port``
+    unless a stream is given as ``{from: component.port, topic: name}``)."""
+    from .graph import Problem
+
+    rec = spec.record or {}
+    streams = rec.get("streams", ["*"])
+    topics: dict[str, str] = {}
+    every = [f"{cid}.{p}" for cid, ports in outputs.items() for p in ports]
+    if not isinstance(streams, list):
+        problems.append(Problem(spec.record_loc, "record streams must be a list of patterns like 'slam.pose' or 'radar/*'"))
+        return topics
+    for item in streams:
+        if isinstance(item, dict) and set(item) <= {"from", "topic"} and "from" in item:
+            if item["from"] not in every:
+                problems.append(Problem(spec.record_loc, f"record: no output '{item['from']}'"))
+                continue
+            topics[str(item.get("topic") or item["from"].replace(".", "/", 1))] = item["from"]
+            continue
+        if not isinstance(item, str):
+            problems.append(Problem(spec.record_loc, f"record: a stream is a pattern or {{from:, topic:}}, got {item!r}"))
+            continue
+        hits = [o for o in every if fnmatch.fnmatchcase(o, item) or fnmatch.fnmatchcase(o.replace(".", "/", 1), item)]
+        if not hits:
+            problems.append(Problem(spec.record_loc, f"record: pattern '{item}' matches no output"))
+        for o in hits:
+            topics.setdefault(o.replace(".", "/", 1), o)
+    return topics
+
+
+def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
+    """Every problem of ``spec``: types, parameters, ports, port types, required inputs,
+    cycles without a delay, record streams."""
+    from .graph import Problem, closest
+
+    problems: list[Problem] = []
+    ports = _ports(spec, registry, problems)
+    connected: set[tuple[str, str]] = set()
+    edges: list[tuple[str, str, Any]] = []
+    for c in spec.connections:
+        ok = True
+        for cid in (c.src, c.dst):
+            if cid not in spec.components:
+                hint = closest(cid, spec.components)
+                problems.append(Problem(c.loc, f"connection '{c}': no component '{cid}'" + (f" (did you mean '{hint}'?)" if hint else "")))
+                ok = False
+        if not ok:
+            continue
+        outs = ports[c.src][3] if c.src in ports else None
+        ins = ports[c.dst][2] if c.dst in ports else None
+        if outs is not None and c.out not in outs:
+            hint = closest(c.out, outs)
+            problems.append(Problem(c.loc, f"connection '{c}': '{c.src}' ({spec.components[c.src].type}) "
+                                    f"has no output '{c.out}'"
+                                    + (f" (did you mean '{hint}'?)" if hint else f"; outputs: {', '.join(outs) or 'none'}")))
+            ok = False
+        if ins is not None and c.inp not in ins:
+            hint = closest(c.inp, ins)
+            problems.append(Problem(c.loc, f"connection '{c}': '{c.dst}' ({spec.components[c.dst].type}) "
+                                    f"has no input '{c.inp}'"
+                                    + (f" (did you mean '{hint}'?)" if hint else f"; inputs: {', '.join(ins) or 'none'}")))
+            ok = False
+        if ok and ins is not None:
+            connected.add((c.dst, c.inp))
+        if not ok or outs is None or ins is None:
+            continue
+        if not _compatible(outs[c.out].type, ins[c.inp].type):
+            problems.append(Problem(c.loc, f"connection '{c}': output type {_tname(outs[c.out].type)} "
+                                    f"does not fit input type {_tname(ins[c.inp].type)}"))
+        if not c.delayed:
+            edges.append((c.src, c.dst, c))
+    for cid, (_, _, ins, _) in ports.items():
+        for name, decl in ins.items():
+            if decl.required and (cid, name) not in connected and cid != RECORDER_ID:
+                problems.append(Problem(spec.components[cid].loc, f"component '{cid}': required input '{name}' is not connected"))
+    import networkx as nx
+
+    g = nx.DiGraph()
+    for a, b, c in edges:
+        g.add_edge(a, b, conn=c)
+    try:
+        cyc = nx.find_cycle(g)
+        conn = g.edges[cyc[0][0], cyc[0][1]]["conn"]
+        path = " -> ".join([a for a, _ in cyc] + [cyc[0][0]])
+        problems.append(Problem(conn.loc, f"cycle without a delay: {path} (mark one connection '[delay]')"))
+    except nx.NetworkXNoCycle:
+        pass
+    if spec.record is not None:
+        if RECORDER_TYPE not in registry.components:
+            problems.append(Problem(spec.record_loc, f"record: needs the '{RECORDER_TYPE}' component (is the io plugin installed and not blocked?)"))
+        else:
+            resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
+    return problems
+
+
+def build(spec: GraphSpec, registry: Registry) -> Network:
+    """Instantiate and wire the components of a validated ``spec``."""
+    from .graph import GraphError
+
+    net = Network(name=spec.name)
+    net.metadata["graph"] = spec.resolved()
+    for c in spec.components.values():
+        cls = registry.components[c.type]
+        net.add(cls(name=c.id, **c.params), on_error=c.on_error)
+    for c in spec.connections:
+        net.connect(net.components[c.src].outputs[c.out], net.components[c.dst].inputs[c.inp], c.delayed)
+    if spec.record is not None:
+        problems: list = []
+        topics = resolve_record(spec, {k: v.outputs for k, v in net.components.items()}, problems)
+        if problems:
+            raise GraphError(problems)
+        params = {k: v for k, v in spec.record.items() if k != "streams"}
+        params.update(topics=topics, graph=spec.resolved(),
+                      plugins={n: p.version for n, p in registry.plugins.items()})
+        rec = net.add(registry.components[RECORDER_TYPE](name=RECORDER_ID, **params))
+        for topic, origin in topics.items():
+            cid, port = origin.split(".", 1)
+            net.connect(net.components[cid].outputs[port], rec.inputs[topic])
+    try:
+        net.order()
+    except CycleError as e:
+        from .graph import Problem
+
+        raise GraphError([Problem(None, str(e))]) from None
+    return net
+
+
+def to_dot(net: Network) -> str:
+    """Graphviz DOT text of a built network: one node per component, one edge per connection."""
+    lines = [f'digraph "{net.name}" {{', "  rankdir=LR;", '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", fontname="Helvetica"];']
+    for c in net.order():
+        kind = type(c).type_name or type(c).__name__
+        lines.append(f'  "{c.name}" [label="{c.name}\\n{kind}"];')
+    for conn in net.connections:
+        style = ", style=dashed" if conn.delayed else ""
+        lines.append(f'  "{conn.src.owner.name}" -> "{conn.dst.owner.name}" [label="{conn.src.name} → {conn.dst.name}"{style}];')
+    lines.append("}")
+    return "\n".join(lines)

@@ -1,0 +1,108 @@
+"""Shared pieces of the subcommands: session, graph loading, progress bar, summary."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+from ..component import Source
+from ..graph import GraphError
+from ..network import Network
+from ..session import Session
+from ..summary import ComponentError, RunSummary
+from ..yamlloc import YamlError
+from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
+
+__all__ = ["add_graph_args", "open_session", "load_spec", "Progress", "run_network"]
+
+
+def add_graph_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("graph", metavar="GRAPH", help="graph YAML file")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMP.PARAM=VALUE",
+                   help="override a component parameter (repeatable), e.g. --set slam.cell_m=0.4")
+    p.add_argument("--var", dest="variables", action="append", default=[], metavar="NAME=VALUE",
+                   help="set a ${NAME} variable of the graph (repeatable)")
+
+
+def parse_vars(items: list[str]) -> dict[str, Any]:
+    import yaml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise CommandError(f"--var {item!r}: expected NAME=VALUE", EXIT_USAGE)
+        k, v = item.split("=", 1)
+        out[k.strip()] = yaml.safe_load(v) if v.strip() else ""
+    return out
+
+
+def open_session() -> Session:
+    try:
+        return Session()
+    except Exception as e:
+        raise CommandError(f"plugins: {e}", EXIT_FAILED) from e
+
+
+def load_spec(session: Session, args: argparse.Namespace) -> Any:
+    try:
+        return session.load(args.graph, args.overrides, parse_vars(args.variables))
+    except (GraphError, YamlError) as e:
+        raise CommandError(str(e), EXIT_USAGE) from None
+
+
+class Progress:
+    """A tqdm bar in mission seconds, with wall time and speed ratio; silent when not a TTY."""
+
+    def __init__(self, net: Network, enabled: bool | None = None, desc: str = "mission") -> None:
+        hints = [s.duration_hint_ns() for s in net.components.values() if isinstance(s, Source)]
+        known = [h for h in hints if h]
+        self.total_s = max(known) / 1e9 if known else None
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.bar: Any = None
+        self.desc = desc
+        self.wall0 = time.perf_counter()
+
+    def __call__(self, t_ns: int, start_ns: int | None) -> None:
+        if not self.enabled or start_ns is None:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total_s, unit="s", desc=self.desc, file=sys.stderr, leave=True,
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s mission "
+                            "[{elapsed} wall, {postfix}]" if self.total_s else
+                            "{desc}: {n:.1f} s mission [{elapsed} wall, {postfix}]")
+        mission_s = (t_ns - start_ns) / 1e9
+        wall = time.perf_counter() - self.wall0
+        self.bar.n = round(mission_s, 3)
+        self.bar.set_postfix_str(f"x{mission_s / wall:.1f} real time" if wall > 0 else "", refresh=False)
+        self.bar.refresh()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = False,
+                progress: bool | None = None, on_summary: Callable[[RunSummary], None] | None = None) -> int:
+    """Build and run ``spec``, show progress, print the summary, return the exit code."""
+    net = session.build(spec)
+    bar = Progress(net, enabled=progress)
+    try:
+        summary = session.run(net, speed=speed if speed is not None else spec.speed,
+                              mode=spec.clock_mode, progress=bar)
+    except ComponentError as e:
+        bar.close()
+        partial = getattr(e, "summary", None)
+        if partial is not None and not quiet:
+            print(partial.format(), file=sys.stderr)
+        raise CommandError(str(e), EXIT_FAILED) from e
+    bar.close()
+    if not quiet:
+        print(summary.format(), file=sys.stderr)
+    if on_summary:
+        on_summary(summary)
+    return EXIT_INTERRUPTED if summary.interrupted else EXIT_OK

@@ -1,0 +1,327 @@
+"""Components: ports and parameters declared on the class, validated before a run.
+
+.. code-block:: python
+
+    class Scale(Component):
+        \"\"\"Multiply every number by a gain.\"\"\"
+        x = Input(float)                      # reactive: each sample triggers process()
+        y = Output(float)
+        gain = Param(float, default=2.0, ge=0, doc="multiplier")
+
+        def process(self, t: int) -> None:
+            self.y.emit(t, self.x.take() * self.gain)
+
+Lifecycle (RTMaps Birth/Core/Death): ``start()`` once before the first sample,
+``process(t)`` for every trigger (``self.trigger`` names the input, sync group or
+periodic timer that fired), ``stop()`` once at the end, even when the run is interrupted
+or another component failed: that is where summaries and reports are written.
+
+A :class:`Source` has no inputs; its :meth:`Source.generate` yields ``(t_ns, port,
+data)`` in non-decreasing time. Offline, the executor pulls the earliest pending sample
+of all sources; live sources (``live = True``) run in threads and stamp with
+``self.now_ns()``.
+
+Components whose ports depend on their parameters (a replayer's outputs are the topics
+of its file; a recorder's inputs are the streams it records) override
+:meth:`Component.declare_ports`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterator
+from typing import Any, ClassVar
+
+from .ports import OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
+
+__all__ = [
+    "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED",
+]
+
+log = logging.getLogger("impala_flow")
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED: Any = _Required()
+
+
+class ParamError(ValueError):
+    """A parameter value that does not fit its declaration."""
+
+
+class Param:
+    """A typed, validated parameter.
+
+    ``type`` is one of int, float, str, bool, list, dict. Bounds ``ge``/``gt``/``le``/
+    ``lt`` apply to numbers (and to every element of a list of numbers); ``choices``
+    lists the accepted values. Without a default the parameter is required.
+    """
+
+    def __init__(
+        self, type: type = float, default: Any = REQUIRED, *, ge: float | None = None,
+        gt: float | None = None, le: float | None = None, lt: float | None = None,
+        choices: tuple | list | None = None, doc: str = "",
+    ) -> None:
+        self.type = type
+        self.default = default
+        self.ge, self.gt, self.le, self.lt = ge, gt, le, lt
+        self.choices = tuple(choices) if choices is not None else None
+        self.doc = doc
+        self.name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return obj._params[self.name]
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+    def convert(self, value: Any) -> Any:
+        """Return ``value`` converted to the declared type, or raise :class:`ParamError`."""
+        t = self.type
+        if t is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = float(value)
+        elif t is list and isinstance(value, tuple):
+            value = list(value)
+        if not isinstance(value, t) or (t is int and isinstance(value, bool)):
+            raise ParamError(f"expected {t.__name__}, got {type(value).__name__} {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise ParamError(f"{value!r} is not one of {list(self.choices)}")
+        nums = value if isinstance(value, list) else [value]
+        for v in nums:
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                self._check_bounds(v)
+        return value
+
+    def _check_bounds(self, v: float) -> None:
+        if isinstance(v, float) and math.isnan(v):
+            raise ParamError("NaN is not allowed")
+        if self.ge is not None and not v >= self.ge:
+            raise ParamError(f"{v!r} must be >= {self.ge}")
+        if self.gt is not None and not v > self.gt:
+            raise ParamError(f"{v!r} must be > {self.gt}")
+        if self.le is not None and not v <= self.le:
+            raise ParamError(f"{v!r} must be <= {self.le}")
+        if self.lt is not None and not v < self.lt:
+            raise ParamError(f"{v!r} must be < {self.lt}")
+
+    def describe(self) -> str:
+        bits = [self.type.__name__]
+        if not self.required:
+            bits.append(f"default {self.default!r}")
+        for k in ("ge", "gt", "le", "lt"):
+            v = getattr(self, k)
+            if v is not None:
+                bits.append(f"{k} {v}")
+        if self.choices:
+            bits.append(f"one of {list(self.choices)}")
+        return ", ".join(bits)
+
+
+class Input:
+    """An input port declaration.
+
+    ``type``: the message type accepted (``object`` accepts anything). ``policy``:
+    ``reactive`` or ``sampling``. ``sync``: name of a sync group, ``tolerance`` its
+    half-window in seconds. ``history``: seconds of samples kept for ``at``/``between``.
+    ``maxsize`` and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
+    FIFO. ``required=False`` lets the input stay unconnected. ``angular=True`` makes
+    ``at()`` interpolate numbers as angles.
+    """
+
+    def __init__(
+        self, type: type = object, *, policy: str = "reactive", sync: str | None = None,
+        tolerance: float = 0.0, history: float | None = None, maxsize: int = 1024,
+        overflow: str = "block", required: bool = True, angular: bool = False, doc: str = "",
+    ) -> None:
+        if policy not in POLICIES:
+            raise ValueError(f"Input policy must be one of {POLICIES}, got {policy!r}")
+        if overflow not in OVERFLOWS:
+            raise ValueError(f"Input overflow must be one of {OVERFLOWS}, got {overflow!r}")
+        if maxsize < 1:
+            raise ValueError("Input maxsize must be >= 1")
+        self.type = type
+        self.policy = policy
+        self.sync = sync
+        self.tolerance = float(tolerance)
+        self.history = history
+        self.maxsize = int(maxsize)
+        self.overflow = overflow
+        self.required = required
+        self.angular = angular
+        self.doc = doc
+        self.name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return obj.inputs[self.name]
+
+
+class Output:
+    """An output port declaration; ``type`` is the message type emitted."""
+
+    def __init__(self, type: type = object, *, doc: str = "") -> None:
+        self.type = type
+        self.doc = doc
+        self.name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return obj.outputs[self.name]
+
+
+class Periodic:
+    """A periodic trigger on mission time: ``process`` runs at every multiple of the period.
+
+    ``period`` is seconds, or the name of a float :class:`Param` holding it.
+    """
+
+    def __init__(self, period: float | str, *, doc: str = "") -> None:
+        self.period = period
+        self.doc = doc
+        self.name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def period_ns(self, comp: Component) -> int:
+        p = comp._params[self.period] if isinstance(self.period, str) else self.period
+        return max(1, int(round(float(p) * 1e9)))
+
+
+class Component:
+    """Base class of every processing component (see the module docstring)."""
+
+    __inputs__: ClassVar[dict[str, Input]] = {}
+    __outputs__: ClassVar[dict[str, Output]] = {}
+    __params__: ClassVar[dict[str, Param]] = {}
+    __timers__: ClassVar[dict[str, Periodic]] = {}
+    live: ClassVar[bool] = False
+    #: set by the registry: the YAML type name, e.g. ``radar.FuzzyPairer``
+    type_name: ClassVar[str] = ""
+
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        ins: dict[str, Input] = {}
+        outs: dict[str, Output] = {}
+        params: dict[str, Param] = {}
+        timers: dict[str, Periodic] = {}
+        for klass in reversed(cls.__mro__):
+            for k, v in vars(klass).items():
+                if isinstance(v, Input):
+                    ins[k] = v
+                elif isinstance(v, Output):
+                    outs[k] = v
+                elif isinstance(v, Param):
+                    params[k] = v
+                elif isinstance(v, Periodic):
+                    timers[k] = v
+        cls.__inputs__, cls.__outputs__, cls.__params__, cls.__timers__ = ins, outs, params, timers
+
+    @classmethod
+    def validate_params(cls, params: dict[str, Any]) -> tuple[dict[str, Any], dict[str, str]]:
+        """Convert ``params``; return (values, problems by parameter name)."""
+        values: dict[str, Any] = {}
+        problems: dict[str, str] = {}
+        for k in params:
+            if k not in cls.__params__:
+                from .graph import closest
+
+                hint = closest(k, cls.__params__)
+                problems[k] = "unknown parameter" + (f" (did you mean '{hint}'?)" if hint else "")
+        for k, p in cls.__params__.items():
+            if k in params:
+                try:
+                    values[k] = p.convert(params[k])
+                except ParamError as e:
+                    problems[k] = str(e)
+            elif p.required:
+                problems[k] = f"required parameter missing ({p.describe()})"
+            else:
+                values[k] = p.default
+        return values, problems
+
+    @classmethod
+    def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
+        """Ports of an instance with these (validated) parameters; the class's by default."""
+        return dict(cls.__inputs__), dict(cls.__outputs__)
+
+    def __init__(self, name: str | None = None, **params: Any) -> None:
+        self.name = name or type(self).__name__
+        values, problems = self.validate_params(params)
+        if problems:
+            k, msg = next(iter(problems.items()))
+            raise ParamError(f"component '{self.name}': parameter '{k}': {msg}")
+        self._params = values
+        self.trigger = ""
+        self.log = log.getChild(self.name)
+        self._clock_ns: Callable[[], int] = time.monotonic_ns
+        ins, outs = self.declare_ports(values)
+        self.inputs: dict[str, InputPort] = {k: InputPort(self, k, d) for k, d in ins.items()}
+        self.outputs: dict[str, OutputPort] = {k: OutputPort(self, k, d) for k, d in outs.items()}
+        groups: dict[str, list[InputPort]] = {}
+        for p in self.inputs.values():
+            if p.decl.sync is not None:
+                groups.setdefault(p.decl.sync, []).append(p)
+        self.sync_groups = {
+            g: SyncGroup(g, ms, max(m.decl.tolerance for m in ms)) for g, ms in groups.items()
+        }
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return dict(self._params)
+
+    def now_ns(self) -> int:
+        """Mission time now (live sources stamp their samples with it)."""
+        return self._clock_ns()
+
+    # --- lifecycle -----------------------------------------------------------------
+    def start(self) -> None:
+        """Called once before the first sample."""
+
+    def process(self, t: int) -> None:
+        """Called for each trigger; ``t`` is the triggering sample's time (int ns)."""
+
+    def stop(self) -> None:
+        """Called once at the end of the run, also after an error or an interrupt."""
+
+    def on_time_jump(self, offset_ns: int) -> None:
+        """Called when a source announces a jump of the mission clock (a replay loop)."""
+
+    def summary(self) -> dict[str, Any]:
+        """Figures this component wants printed in the run summary."""
+        return {}
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"
+
+
+class Source(Component):
+    """A component that produces samples: drivers, simulators, the replayer."""
+
+    def generate(self) -> Iterator[tuple[int, str, Any]]:
+        """Yield ``(t_ns, output_port, data)`` in non-decreasing ``t_ns``."""
+        return iter(())
+
+    def duration_hint_ns(self) -> int | None:
+        """Mission duration this source expects to produce, for progress bars."""
+        return None

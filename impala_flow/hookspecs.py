@@ -1,0 +1,53 @@
+"""The hooks a plugin implements. Every hook is prefixed ``impala_flow_``.
+
+A plugin is a module (or object) registered under the ``impala_flow`` entry-point
+group; the entry point's name is the plugin's name and the prefix of its types in YAML
+(entry point ``radar`` -> ``radar.FuzzyPairer``)::
+
+    [project.entry-points.impala_flow]
+    mything = "mything.plugin"
+
+    # mything/plugin.py
+    from impala_flow.plugins import hookimpl
+
+    @hookimpl
+    def impala_flow_register(registry):
+        registry.add_component(MyFilter)
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import pluggy
+
+if TYPE_CHECKING:
+    import argparse
+
+    from .registry import Registry
+
+PROJECT = "impala_flow"
+hookspec = pluggy.HookspecMarker(PROJECT)
+hookimpl = pluggy.HookimplMarker(PROJECT)
+
+
+@hookspec
+def impala_flow_register(registry: Registry) -> None:
+    """Register this plugin's components, message types and codecs on ``registry``.
+
+    Called once per plugin per run, with a registry that knows which plugin is calling,
+    so names are prefixed and duplicates are reported with both plugins named.
+    """
+
+
+@hookspec
+def impala_flow_add_commands(subparsers: argparse._SubParsersAction, registry: Registry) -> None:
+    """Add subcommands to the ``impala-flow`` command line.
+
+    Each parser must set ``func=callable(args) -> int`` with ``set_defaults``.
+    """
+
+
+@hookspec
+def impala_flow_graph_loaded(graph: Any) -> None:
+    """Inspect (never replace) a validated graph before it runs, e.g. to log it."""

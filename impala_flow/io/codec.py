@@ -1,0 +1,408 @@
+"""One generic, exact binary codec for every message dataclass and the builtin payloads.
+
+Wire format ``impala-flow-bin`` (schema encoding ``impala-flow/v1``), little-endian:
+
+========== ===========================================================================
+kind       bytes
+========== ===========================================================================
+int        ``<q`` (int64; larger ints are refused)
+float      ``<d``
+bool       ``<?``
+str        ``<I`` length, UTF-8
+bytes      ``<Q`` length, raw
+ndarray    ``<B`` length + ``dtype.str`` (keeps byte order), ``<B`` ndim, ``<Q`` x ndim
+           shape, then the C-order raw bytes (``prod(shape) * itemsize``)
+message    its fields, in declaration order, inline (the type is known from the schema)
+X | None   ``<?`` present, then X if present
+none       nothing (the payload ``None``)
+========== ===========================================================================
+
+Each type gets a compiled encoder (runs of fixed-size scalars packed by one
+:class:`struct.Struct`, arrays written as raw memory) and decoder (arrays are read-only
+``np.frombuffer`` views of the payload: zero copy). Decoding never executes code: dtypes
+are parsed from their ``str`` and object dtypes are refused. The schema stored with a
+channel is JSON naming every field and its kind, so a file is self-describing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import struct
+import types
+import typing
+from collections.abc import Callable
+from operator import attrgetter
+from typing import Any
+
+import numpy as np
+
+from ..msgs._base import is_message, schema_name, schema_version
+from .errors import CodecError
+
+__all__ = [
+    "Codec", "MessageCodec", "BuiltinCodec", "builtin_codecs",
+    "SCHEMA_ENCODING", "MESSAGE_ENCODING",
+]
+
+SCHEMA_ENCODING = "impala-flow/v1"
+MESSAGE_ENCODING = "impala-flow-bin"
+
+_SCALAR_FMT = {"int": "q", "float": "d", "bool": "?"}
+_U8, _U32, _U64 = struct.Struct("<B"), struct.Struct("<I"), struct.Struct("<Q")
+_SHAPE = [struct.Struct("<" + "Q" * n) for n in range(65)]
+
+Encoder = Callable[[Any, list], None]  # appends byte chunks for a value to a list
+Decoder = Callable[[Any, int], tuple[Any, int]]  # (buffer, offset) -> (value, new offset)
+
+
+class Codec(typing.Protocol):
+    """What the registry, the writer and the reader need from any codec (custom ones too)."""
+
+    py_type: type
+    schema_name: str
+    schema_version: int
+    schema_encoding: str
+    message_encoding: str
+
+    def schema_data(self) -> bytes: ...
+    def encode(self, value: Any) -> bytes: ...
+    def decode(self, data: bytes | memoryview) -> Any: ...
+
+
+# --- arrays ------------------------------------------------------------------------------
+
+_dtype_cache: dict[str, np.dtype] = {}
+_header_cache: dict[tuple[np.dtype, tuple[int, ...]], bytes] = {}
+
+
+def _check_dtype(dt: np.dtype, where: str) -> None:
+    if dt.hasobject:
+        raise CodecError(f"{where}: object arrays cannot be recorded (dtype {dt}); "
+                         "use a numeric, bool, string or datetime dtype")
+    if dt.fields is not None or dt.subdtype is not None:
+        raise CodecError(f"{where}: structured/sub-array dtype {dt} is not supported")
+
+
+def _encode_array(a: Any, parts: list, where: str = "array") -> None:
+    if type(a) is not np.ndarray:
+        if not isinstance(a, np.ndarray):
+            raise CodecError(f"{where}: expected numpy.ndarray, got {type(a).__name__}")
+        a = np.asarray(a)  # subclass (np.matrix, memmap) -> plain ndarray view
+    key = (a.dtype, a.shape)
+    head = _header_cache.get(key)
+    if head is None:
+        _check_dtype(a.dtype, where)
+        ds = a.dtype.str.encode("ascii")
+        head = _U8.pack(len(ds)) + ds + _U8.pack(a.ndim) + _SHAPE[a.ndim].pack(*a.shape)
+        if len(_header_cache) < 4096:
+            _header_cache[key] = head
+    parts.append(head)
+    if a.size:
+        if not a.flags.c_contiguous:
+            a = np.ascontiguousarray(a)
+        parts.append(a.reshape(-1).view(np.uint8).data)
+
+
+def _decode_array(buf: Any, off: int) -> tuple[np.ndarray, int]:
+    n = buf[off]
+    ds = bytes(buf[off + 1 : off + 1 + n]).decode("ascii")
+    off += 1 + n
+    dt = _dtype_cache.get(ds)
+    if dt is None:
+        try:
+            dt = np.dtype(ds)
+        except TypeError as e:
+            raise CodecError(f"bad dtype {ds!r} in payload") from e
+        _check_dtype(dt, "payload")
+        _dtype_cache[ds] = dt
+    ndim = buf[off]
+    shape = _SHAPE[ndim].unpack_from(buf, off + 1)
+    off += 1 + 8 * ndim
+    count = 1
+    for s in shape:
+        count *= s
+    if count == 0:
+        arr = np.empty(shape, dt)
+        arr.flags.writeable = False
+        return arr, off
+    nbytes = count * dt.itemsize
+    if off + nbytes > len(buf):
+        raise CodecError("array payload truncated")
+    arr = np.frombuffer(buf, dt, count, off)
+    if ndim != 1:
+        arr = arr.reshape(shape)
+    return arr, off + nbytes
+
+
+# --- scalars and strings -----------------------------------------------------------------
+
+def _encode_str(v: Any, parts: list) -> None:
+    b = v.encode("utf-8")
+    parts.append(_U32.pack(len(b)))
+    parts.append(b)
+
+
+def _decode_str(buf: Any, off: int) -> tuple[str, int]:
+    (n,) = _U32.unpack_from(buf, off)
+    off += 4
+    return str(buf[off : off + n], "utf-8"), off + n
+
+
+def _encode_bytes(v: Any, parts: list) -> None:
+    parts.append(_U64.pack(len(v)))
+    parts.append(v)
+
+
+def _decode_bytes(buf: Any, off: int) -> tuple[bytes, int]:
+    (n,) = _U64.unpack_from(buf, off)
+    off += 8
+    return bytes(buf[off : off + n]), off + n
+
+
+def _encode_none(v: Any, parts: list) -> None:
+    if v is not None:
+        raise CodecError(f"expected None, got {type(v).__name__}")
+
+
+def _decode_none(buf: Any, off: int) -> tuple[None, int]:
+    return None, off
+
+
+def _scalar_codec(kind: str) -> tuple[Encoder, Decoder]:
+    s = struct.Struct("<" + _SCALAR_FMT[kind])
+
+    def enc(v: Any, parts: list) -> None:
+        parts.append(s.pack(v))
+
+    def dec(buf: Any, off: int) -> tuple[Any, int]:
+        return s.unpack_from(buf, off)[0], off + s.size
+
+    return enc, dec
+
+
+_LEAF: dict[str, tuple[Encoder, Decoder]] = {
+    "int": _scalar_codec("int"), "float": _scalar_codec("float"),
+    "bool": _scalar_codec("bool"), "str": (_encode_str, _decode_str),
+    "bytes": (_encode_bytes, _decode_bytes), "ndarray": (_encode_array, _decode_array),
+    "none": (_encode_none, _decode_none),
+}
+_PY_KIND = {int: "int", float: "float", bool: "bool", str: "str", bytes: "bytes",
+            np.ndarray: "ndarray", type(None): "none"}
+
+
+def _optional(enc: Encoder, dec: Decoder) -> tuple[Encoder, Decoder]:
+    yes, no = b"\x01", b"\x00"
+
+    def oenc(v: Any, parts: list) -> None:
+        if v is None:
+            parts.append(no)
+        else:
+            parts.append(yes)
+            enc(v, parts)
+
+    def odec(buf: Any, off: int) -> tuple[Any, int]:
+        if buf[off]:
+            return dec(buf, off + 1)
+        return None, off + 1
+
+    return oenc, odec
+
+
+# --- message types -----------------------------------------------------------------------
+
+def _type_id(cls: type) -> str:
+    return f"{schema_name(cls)}@{schema_version(cls)}"
+
+
+def _field_kind(cls: type, f: dataclasses.Field, hint: Any) -> tuple[str, bool, type | None]:
+    """(kind, optional, message type) of one annotated field."""
+    optional = False
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if len(args) != 1 or len(typing.get_args(hint)) != 2:
+            raise CodecError(f"{cls.__qualname__}.{f.name}: only 'X | None' unions are supported")
+        optional, hint = True, args[0]
+        origin = typing.get_origin(hint)
+    if origin is np.ndarray:  # numpy.typing.NDArray[...]
+        hint = np.ndarray
+    if hint in _PY_KIND and hint is not type(None):
+        return _PY_KIND[hint], optional, None
+    if isinstance(hint, type) and is_message(hint):
+        return "message", optional, hint
+    raise CodecError(f"{cls.__qualname__}.{f.name}: unsupported field type {hint!r}; use int, "
+                     "float, str, bool, bytes, numpy.ndarray, a message type or 'X | None'")
+
+
+class _Compiled:
+    """Encoder/decoder pair of one message type plus its JSON field description."""
+
+    encode_into: Encoder
+    decode_from: Decoder
+    fields: list[dict[str, Any]]
+
+
+def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
+    if cls in cache:
+        return cache[cls]
+    if not dataclasses.is_dataclass(cls) or not is_message(cls):
+        raise CodecError(f"{cls!r} is not a @message dataclass")
+    comp = cache[cls] = _Compiled()  # registered first: recursive types resolve lazily
+    hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    enc_steps: list[Encoder] = []
+    dec_steps: list[Callable[[Any, int, list], int]] = []
+    comp.fields = []
+    run: list[tuple[str, str]] = []  # pending fixed-size scalars (name, struct char)
+
+    def flush_run() -> None:
+        if not run:
+            return
+        s = struct.Struct("<" + "".join(c for _, c in run))
+        get = attrgetter(*(n for n, _ in run))
+        if len(run) == 1:
+            enc_steps.append(lambda o, parts: parts.append(s.pack(get(o))))
+        else:
+            enc_steps.append(lambda o, parts: parts.append(s.pack(*get(o))))
+
+        def dstep(buf: Any, off: int, out: list) -> int:
+            out.extend(s.unpack_from(buf, off))
+            return off + s.size
+
+        dec_steps.append(dstep)
+        run.clear()
+
+    for f in dataclasses.fields(cls):
+        kind, optional, sub = _field_kind(cls, f, hints[f.name])
+        desc: dict[str, Any] = {"name": f.name, "kind": kind}
+        if sub is not None:
+            desc["type"] = _type_id(sub)
+        if optional:
+            desc["optional"] = True
+        comp.fields.append(desc)
+        if kind in _SCALAR_FMT and not optional:
+            run.append((f.name, _SCALAR_FMT[kind]))
+            continue
+        flush_run()
+        if sub is not None:
+            subc = _compile(sub, cache)
+            enc, dec = (lambda v, p, c=subc: c.encode_into(v, p)), (
+                lambda b, o, c=subc: c.decode_from(b, o))
+        else:
+            enc, dec = _LEAF[kind]
+        if optional:
+            enc, dec = _optional(enc, dec)
+        get1 = attrgetter(f.name)
+        enc_steps.append(lambda o, parts, e=enc, g=get1: e(g(o), parts))
+
+        def dstep1(buf: Any, off: int, out: list, d: Decoder = dec) -> int:
+            v, off = d(buf, off)
+            out.append(v)
+            return off
+
+        dec_steps.append(dstep1)
+    flush_run()
+
+    enc_steps_t, dec_steps_t = tuple(enc_steps), tuple(dec_steps)
+    new = object.__new__
+    use_dict = "__dict__" in dir(cls) and not getattr(cls, "__slots__", None)
+    setattr_ = object.__setattr__
+
+    def encode_into(obj: Any, parts: list) -> None:
+        for step in enc_steps_t:
+            step(obj, parts)
+
+    def decode_from(buf: Any, off: int) -> tuple[Any, int]:
+        values: list = []
+        for step in dec_steps_t:
+            off = step(buf, off, values)
+        obj = new(cls)
+        if use_dict:
+            obj.__dict__.update(zip(names, values, strict=True))
+        else:
+            for n, v in zip(names, values, strict=True):
+                setattr_(obj, n, v)
+        return obj, off
+
+    comp.encode_into, comp.decode_from = encode_into, decode_from
+    return comp
+
+
+def _schema_json(root: dict[str, Any], definitions: dict[str, Any]) -> bytes:
+    doc = {"format": f"{MESSAGE_ENCODING}/1", **root}
+    if definitions:
+        doc["definitions"] = definitions
+    return json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
+
+
+class _BaseCodec:
+    schema_encoding = SCHEMA_ENCODING
+    message_encoding = MESSAGE_ENCODING
+    py_type: type
+    schema_name: str
+    schema_version: int
+    _schema: bytes
+    _enc: Encoder
+    _dec: Decoder
+
+    def schema_data(self) -> bytes:
+        return self._schema
+
+    def encode(self, value: Any) -> bytes:
+        """Encode ``value`` (an instance of :attr:`py_type`) to bytes."""
+        parts: list = []
+        try:
+            self._enc(value, parts)
+        except (struct.error, TypeError, AttributeError, OverflowError) as e:
+            raise CodecError(f"cannot encode {type(value).__name__} with the "
+                             f"{self.schema_name} codec: {e}") from e
+        return b"".join(parts)
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        """Decode a payload; arrays are read-only views of ``data`` (no copy)."""
+        try:
+            value, off = self._dec(data, 0)
+        except (struct.error, IndexError, ValueError, UnicodeDecodeError) as e:
+            if isinstance(e, CodecError):
+                raise
+            raise CodecError(f"malformed {self.schema_name} payload: {e}") from e
+        if off != len(data):
+            raise CodecError(f"malformed {self.schema_name} payload: "
+                             f"{len(data) - off} trailing bytes")
+        return value
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.schema_name}@{self.schema_version}>"
+
+
+class MessageCodec(_BaseCodec):
+    """The generic codec of one ``@message`` dataclass (compiled once, at construction)."""
+
+    def __init__(self, cls: type) -> None:
+        cache: dict[type, _Compiled] = {}
+        comp = _compile(cls, cache)
+        self.py_type = cls
+        self.schema_name, self.schema_version = schema_name(cls), schema_version(cls)
+        self._enc, self._dec = comp.encode_into, comp.decode_from
+        defs = {_type_id(t): {"fields": c.fields} for t, c in cache.items() if t is not cls}
+        self._schema = _schema_json(
+            {"name": self.schema_name, "version": self.schema_version, "kind": "message",
+             "fields": comp.fields}, defs)
+
+
+class BuiltinCodec(_BaseCodec):
+    """Codec of a builtin payload (``int``, ``float``, ``str``, ``bytes``, ``bool``,
+    ``numpy.ndarray`` or ``None``), schema ``builtin.<kind>`` version 1."""
+
+    def __init__(self, py_type: type) -> None:
+        kind = _PY_KIND[py_type]
+        self.py_type = py_type
+        self.schema_name, self.schema_version = f"builtin.{kind}", 1
+        self._enc, self._dec = _LEAF[kind]
+        self._schema = _schema_json({"name": self.schema_name, "version": 1, "kind": kind}, {})
+
+
+def builtin_codecs() -> list[BuiltinCodec]:
+    """One codec per builtin payload type."""
+    return [BuiltinCodec(t) for t in _PY_KIND]

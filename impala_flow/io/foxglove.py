@@ -1,0 +1,197 @@
+"""Mirrors of standard messages in Foxglove's well-known protobuf schemas.
+
+A recording opens in Foxglove as it is: next to the exact ``impala-flow-bin`` channel
+``slam/pose``, the writer adds the channel ``/foxglove/slam/pose`` (see
+:func:`foxglove_topic`) carrying the same samples as ``foxglove.PoseInFrame`` (schema
+encoding ``protobuf``, schema data = the FileDescriptorSet of ``foxglove-schemas-protobuf``).
+
+=================== ========================= ==========================================
+impala type         Foxglove schema           notes
+=================== ========================= ==========================================
+Pose2D              foxglove.PoseInFrame      yaw -> quaternion about z
+Trajectory2D        foxglove.PosesInFrame     one pose per row of ``xyt``
+Grid                foxglove.Grid             corner = cell (0, 0) centre - cell_m / 2
+Points2D            foxglove.PointCloud       fields x, y, z (= 0), value (float32)
+ObjectStates        foxglove.PointCloud       fields x, y, z, id, vx, vy (float32)
+=================== ========================= ==========================================
+
+The mirror channels carry the metadata ``impala_flow.mirror_of = <topic>``; readers of
+impala types skip them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from foxglove_schemas_protobuf.Grid_pb2 import Grid as FxGrid
+from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
+from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+from foxglove_schemas_protobuf.Pose_pb2 import Pose
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.Vector2_pb2 import Vector2
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from google.protobuf.descriptor import FileDescriptor
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
+from google.protobuf.timestamp_pb2 import Timestamp
+
+from .. import msgs
+
+__all__ = ["FoxgloveMirror", "mirror_for", "foxglove_topic", "file_descriptor_set",
+           "MIRROR_KEY", "FOXGLOVE_PREFIX"]
+
+FOXGLOVE_PREFIX = "/foxglove/"
+MIRROR_KEY = "impala_flow.mirror_of"
+
+
+def foxglove_topic(topic: str) -> str:
+    """Topic of the Foxglove mirror of ``topic`` (``slam/pose`` -> ``/foxglove/slam/pose``)."""
+    return FOXGLOVE_PREFIX + topic.lstrip("/")
+
+
+@dataclass(frozen=True)
+class FoxgloveMirror:
+    """How one impala type is mirrored: schema name, FileDescriptorSet, converter."""
+
+    schema_name: str
+    schema_data: bytes
+    convert: Callable[[Any, int], bytes]  # (value, t_ns) -> serialized protobuf
+
+
+def file_descriptor_set(message_class: Any) -> bytes:
+    """Serialized FileDescriptorSet of a protobuf message class and all its dependencies."""
+    fds = FileDescriptorSet()
+    seen: set[str] = set()
+
+    def add(fd: FileDescriptor) -> None:
+        if fd.name in seen:
+            return
+        seen.add(fd.name)
+        for dep in fd.dependencies:
+            add(dep)
+        fd.CopyToProto(fds.file.add())
+
+    add(message_class.DESCRIPTOR.file)
+    return fds.SerializeToString()
+
+
+def _stamp(t_ns: int) -> Timestamp:
+    s, ns = divmod(int(t_ns), 1_000_000_000)
+    return Timestamp(seconds=s, nanos=ns)
+
+
+def _pose(x: float, y: float, theta: float) -> Pose:
+    h = 0.5 * float(theta)
+    return Pose(position=Vector3(x=float(x), y=float(y), z=0.0),
+                orientation=Quaternion(x=0.0, y=0.0, z=math.sin(h), w=math.cos(h)))
+
+
+def _pose2d(p: msgs.Pose2D, t_ns: int) -> bytes:
+    return PoseInFrame(timestamp=_stamp(t_ns), frame_id=p.frame,
+                       pose=_pose(p.x_m, p.y_m, p.theta_rad)).SerializeToString()
+
+
+def _trajectory(tr: msgs.Trajectory2D, t_ns: int) -> bytes:
+    xyt = np.asarray(tr.xyt, dtype=np.float64).reshape(-1, 3)
+    return PosesInFrame(timestamp=_stamp(t_ns), frame_id=tr.frame,
+                        poses=[_pose(*row) for row in xyt.tolist()]).SerializeToString()
+
+
+_NUMERIC = {"u1": PackedElementField.UINT8, "i1": PackedElementField.INT8,
+            "u2": PackedElementField.UINT16, "i2": PackedElementField.INT16,
+            "u4": PackedElementField.UINT32, "i4": PackedElementField.INT32,
+            "f4": PackedElementField.FLOAT32, "f8": PackedElementField.FLOAT64}
+
+
+def _grid_cells(data: np.ndarray) -> np.ndarray:
+    """Little-endian cells of a type Foxglove knows (bool -> u1, complex -> |.|, 64-bit -> f8)."""
+    a = np.asarray(data)
+    if a.dtype.kind == "b":
+        a = a.astype(np.uint8)
+    elif a.dtype.kind == "c":
+        a = np.abs(a).astype(np.float32)
+    key = f"{a.dtype.kind}{a.dtype.itemsize}"
+    if key not in _NUMERIC:
+        a, key = a.astype(np.float64), "f8"
+    return np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<")), key
+
+
+def _grid(g: msgs.Grid, t_ns: int) -> bytes:
+    cells, key = _grid_cells(g.data)
+    if cells.ndim == 2:
+        cells = cells[:, :, None]
+    rows, cols, n_ch = cells.shape
+    size = cells.dtype.itemsize
+    names = ["value"] if n_ch == 1 else [f"c{i}" for i in range(n_ch)]
+    half = 0.5 * g.cell_m
+    return FxGrid(
+        timestamp=_stamp(t_ns), frame_id=g.frame,
+        pose=_pose(g.origin_x_m - half, g.origin_y_m - half, 0.0),
+        column_count=cols, cell_size=Vector2(x=g.cell_m, y=g.cell_m),
+        row_stride=cols * n_ch * size, cell_stride=n_ch * size,
+        fields=[PackedElementField(name=n, offset=i * size, type=_NUMERIC[key])
+                for i, n in enumerate(names)],
+        data=cells.tobytes(),
+    ).SerializeToString()
+
+
+def _cloud(frame: str, t_ns: int, columns: dict[str, np.ndarray]) -> bytes:
+    n = len(next(iter(columns.values())))
+    packed = np.empty((n, len(columns)), dtype="<f4")
+    for i, col in enumerate(columns.values()):
+        packed[:, i] = col
+    return PointCloud(
+        timestamp=_stamp(t_ns), frame_id=frame, pose=_pose(0.0, 0.0, 0.0),
+        point_stride=4 * len(columns),
+        fields=[PackedElementField(name=k, offset=4 * i, type=PackedElementField.FLOAT32)
+                for i, k in enumerate(columns)],
+        data=packed.tobytes(),
+    ).SerializeToString()
+
+
+def _points(p: msgs.Points2D, t_ns: int) -> bytes:
+    xy = np.asarray(p.xy_m, dtype=np.float64).reshape(-1, 2)
+    value = np.asarray(p.value, dtype=np.float64).reshape(-1)
+    if len(value) != len(xy):
+        value = np.zeros(len(xy))
+    return _cloud(p.frame, t_ns, {"x": xy[:, 0], "y": xy[:, 1], "z": np.zeros(len(xy)),
+                                  "value": value})
+
+
+def _objects(o: msgs.ObjectStates, t_ns: int) -> bytes:
+    xy = np.asarray(o.xy_m, dtype=np.float64).reshape(-1, 2)
+    v = np.asarray(o.v_xy_mps, dtype=np.float64).reshape(-1, 2)
+    ids = np.asarray(o.ids, dtype=np.float64).reshape(-1)
+    if len(v) != len(xy):
+        v = np.zeros_like(xy)
+    if len(ids) != len(xy):
+        ids = np.arange(len(xy), dtype=np.float64)
+    return _cloud(o.frame, t_ns, {"x": xy[:, 0], "y": xy[:, 1], "z": np.zeros(len(xy)),
+                                  "id": ids, "vx": v[:, 0], "vy": v[:, 1]})
+
+
+_TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
+    msgs.Pose2D: (PoseInFrame, _pose2d),
+    msgs.Trajectory2D: (PosesInFrame, _trajectory),
+    msgs.Grid: (FxGrid, _grid),
+    msgs.Points2D: (PointCloud, _points),
+    msgs.ObjectStates: (PointCloud, _objects),
+}
+_cache: dict[type, FoxgloveMirror] = {}
+
+
+def mirror_for(t: type) -> FoxgloveMirror | None:
+    """The Foxglove mirror of type ``t``, or None when Foxglove has no schema for it."""
+    if t in _cache:
+        return _cache[t]
+    entry = _TABLE.get(t)
+    if entry is None:
+        return None
+    pb, convert = entry
+    m = _cache[t] = FoxgloveMirror(pb.DESCRIPTOR.full_name, file_descriptor_set(pb), convert)
+    return m

@@ -1,0 +1,322 @@
+"""MissionReader: decode a recorded mission, streaming chunk by chunk through the index.
+
+A complete file is mapped through its summary (chunk index, statistics, metadata index),
+so :meth:`MissionReader.messages` seeks by time without reading what it skips. A file cut
+short (no footer or summary, e.g. its recorder was SIGKILLed) is mapped by a forward scan
+up to its last complete chunk, every chunk CRC-checked; :meth:`MissionReader.info` then
+says ``truncated`` and how many messages were recovered.
+
+Bad files raise one :class:`~impala_flow.io.errors.RecordingError` subclass with a one-line
+message naming the file and what is wrong. With ``strict=False`` (default) whatever is still
+valid stays readable: a truncated file is recovered, a corrupt chunk is skipped and counted
+in ``info().problems``; with ``strict=True`` both raise.
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+from mcap.opcode import Opcode
+
+from . import _mcapfile as mf
+from .codec import Codec
+from .errors import CodecError, CorruptChunkError, RecordingError, UnknownSchemaError
+from .foxglove import MIRROR_KEY
+from .registry import CodecRegistry
+
+__all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded"]
+
+log = logging.getLogger(__name__)
+
+
+class Recorded(NamedTuple):
+    """One recorded sample: topic, timestamp (int ns), decoded value, sequence number."""
+
+    topic: str
+    t_ns: int
+    data: Any
+    seq: int
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    topic: str
+    schema: str
+    schema_encoding: str
+    message_encoding: str
+    count: int
+    rate_hz: float  # mean rate over the recording's duration
+    mirror_of: str | None  # set on Foxglove mirror channels
+    decodable: bool  # a codec of the registry reads it
+
+
+@dataclass(frozen=True)
+class RecordingInfo:
+    """What ``impala-flow info`` prints."""
+
+    path: str
+    size_bytes: int
+    channels: tuple[ChannelInfo, ...]
+    message_count: int
+    start_ns: int | None
+    end_ns: int | None
+    compression: str  # "zstd", "lz4", "none", or "zstd+lz4" when mixed
+    chunk_count: int
+    truncated: bool
+    recovered_count: int | None  # messages recovered from a truncated file, else None
+    corrupt_chunks: int
+    problems: tuple[str, ...]
+    metadata: dict[str, dict[str, str]]
+    library: str
+    profile: str
+
+    @property
+    def duration_ns(self) -> int:
+        if self.start_ns is None or self.end_ns is None:
+            return 0
+        return self.end_ns - self.start_ns
+
+    @property
+    def duration_s(self) -> float:
+        return self.duration_ns * 1e-9
+
+
+class MissionReader:
+    """Read the mission recorded in ``path`` with the codecs of ``codecs``.
+
+    Opening reads only the header, footer and summary (or, for a cut file, scans it once).
+    Use as a context manager, or call :meth:`close`.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], codecs: CodecRegistry | None = None, *,
+                 strict: bool = False) -> None:
+        self.path = os.fspath(path)
+        self.codecs = codecs if codecs is not None else CodecRegistry.with_standard_types()
+        self.strict = strict
+        try:
+            self._f = open(self.path, "rb")  # noqa: SIM115 - closed by close()
+        except OSError as e:
+            raise RecordingError(self.path, f"cannot open ({e.strerror})") from None
+        try:
+            self._map = self._open()
+        except BaseException:
+            self._f.close()
+            raise
+        self._codecs: dict[int, Codec | UnknownSchemaError] = {}
+        self.undecodable: dict[str, UnknownSchemaError] = {}
+
+    def _open(self) -> mf.FileMap:
+        size = os.fstat(self._f.fileno()).st_size
+        mf.check_magic(self.path, self._f, size)
+        try:
+            fm = mf.read_indexed(self.path, self._f, size)
+        except RecordingError as e:  # corrupt summary: recover by scanning
+            if self.strict:
+                raise
+            fm = mf.scan(self.path, self._f, size, truncated=False)
+            fm.problems.insert(0, e)
+            return fm
+        if fm is not None:
+            if not sum(fm.counts.values()):
+                fm.start_ns = fm.end_ns = None
+            return fm
+        fm = mf.scan(self.path, self._f, size, truncated=True)
+        if fm.truncated and self.strict:
+            raise mf.TruncatedRecordingError(
+                self.path, f"truncated recording (no footer/summary); "
+                           f"{sum(fm.counts.values())} messages recoverable")
+        if fm.truncated:
+            log.warning("%s: truncated recording, %d messages recovered", self.path,
+                        sum(fm.counts.values()))
+        return fm
+
+    # --- description -----------------------------------------------------------------------
+
+    def _codec(self, cid: int) -> Codec | UnknownSchemaError:
+        c = self._codecs.get(cid)
+        if c is None:
+            ch = self._map.channels[cid]
+            s = self._map.schemas.get(ch.schema_id)
+            try:
+                if s is None:
+                    raise UnknownSchemaError(ch.topic, "<no schema>", None)
+                c = self.codecs.for_channel(ch.topic, s.name, s.encoding, s.data,
+                                            ch.message_encoding, ch.metadata)
+            except UnknownSchemaError as e:
+                c = e
+            self._codecs[cid] = c
+        return c
+
+    @property
+    def topics(self) -> dict[str, str]:
+        """Recorded topics (Foxglove mirrors excluded) -> schema name."""
+        out = {}
+        for ch in self._map.channels.values():
+            if MIRROR_KEY not in ch.metadata:
+                s = self._map.schemas.get(ch.schema_id)
+                out[ch.topic] = s.name if s else ""
+        return out
+
+    def topic_type(self, topic: str) -> type:
+        """The Python type decoded on ``topic`` (UnknownSchemaError if no codec reads it)."""
+        c = self._codec(self._channel_id(topic))
+        if isinstance(c, UnknownSchemaError):
+            raise c
+        return c.py_type
+
+    def _channel_id(self, topic: str) -> int:
+        for cid, ch in self._map.channels.items():
+            if ch.topic == topic:
+                return cid
+        raise KeyError(f"{self.path}: no topic {topic!r} (recorded: {sorted(self.topics)})")
+
+    def info(self) -> RecordingInfo:
+        fm = self._map
+        total = sum(fm.counts.values())
+        dur_s = ((fm.end_ns or 0) - (fm.start_ns or 0)) * 1e-9
+        chans = []
+        for cid, ch in sorted(fm.channels.items()):
+            s = fm.schemas.get(ch.schema_id)
+            n = fm.counts.get(cid, 0)
+            chans.append(ChannelInfo(
+                ch.topic, s.name if s else "", s.encoding if s else "", ch.message_encoding,
+                n, n / dur_s if dur_s > 0 else 0.0, ch.metadata.get(MIRROR_KEY),
+                not isinstance(self._codec(cid), UnknownSchemaError)))
+        comps = sorted({c.compression or "none" for c in fm.chunks})
+        corrupt = len(fm.corrupt_offsets)
+        return RecordingInfo(
+            path=self.path, size_bytes=fm.size, channels=tuple(chans), message_count=total,
+            start_ns=fm.start_ns, end_ns=fm.end_ns, compression="+".join(comps) or "none",
+            chunk_count=len(fm.chunks) + corrupt, truncated=fm.truncated,
+            recovered_count=total if fm.truncated else None, corrupt_chunks=corrupt,
+            problems=tuple(str(p) for p in fm.problems), metadata=dict(fm.metadata),
+            library=fm.header.library if fm.header else "",
+            profile=fm.header.profile if fm.header else "")
+
+    def verify(self) -> list[str]:
+        """Read and CRC-check every chunk (without decoding); return the problems found."""
+        for ref in self._map.chunks:
+            self._load(ref)
+        return [str(p) for p in self._map.problems]
+
+    # --- messages --------------------------------------------------------------------------
+
+    def messages(self, topics: Iterable[str] | None = None, start_ns: int | None = None,
+                 end_ns: int | None = None, *, raw: bool = False) -> Iterator[Recorded]:
+        """Samples with ``start_ns <= t_ns < end_ns`` in (t_ns, file order) order.
+
+        ``topics=None`` reads every channel a codec reads (channels of unknown schema are
+        skipped and listed in :attr:`undecodable`; Foxglove mirrors are skipped); naming a
+        topic whose schema is unknown raises UnknownSchemaError. ``raw=True`` yields the
+        payload bytes undecoded. Only the chunks overlapping the time range are read.
+        """
+        wanted = self._select(topics, raw)
+        refs = [r for r in self._map.chunks
+                if (start_ns is None or r.end_ns >= start_ns)
+                and (end_ns is None or r.start_ns < end_ns)
+                and (r.channel_ids is None or not r.channel_ids.isdisjoint(wanted))]
+        refs.sort(key=lambda r: (r.start_ns, r.offset))
+        return self._merge(refs, wanted, start_ns, end_ns)
+
+    def _select(self, topics: Iterable[str] | None, raw: bool) -> dict[int, tuple[str, Any]]:
+        wanted: dict[int, tuple[str, Any]] = {}
+        if topics is None:
+            for cid, ch in self._map.channels.items():
+                if MIRROR_KEY in ch.metadata and not raw:
+                    continue
+                c = self._codec(cid)
+                if raw:
+                    wanted[cid] = (ch.topic, None)
+                elif isinstance(c, UnknownSchemaError):
+                    if self.strict:
+                        raise c
+                    if ch.topic not in self.undecodable:
+                        log.warning("%s: %s; channel skipped", self.path, c)
+                    self.undecodable[ch.topic] = c
+                else:
+                    wanted[cid] = (ch.topic, c.decode)
+            return wanted
+        for topic in [topics] if isinstance(topics, str) else topics:
+            cid = self._channel_id(topic)
+            c = self._codec(cid)
+            if not raw and isinstance(c, UnknownSchemaError):
+                raise c
+            wanted[cid] = (topic, None if raw else c.decode)  # type: ignore[union-attr]
+        return wanted
+
+    def _load(self, ref: mf.ChunkRef) -> memoryview | None:
+        try:
+            return mf.read_chunk(self.path, self._f, ref)
+        except CorruptChunkError as e:
+            if self.strict:
+                raise
+            if ref.offset not in self._map.corrupt_offsets:
+                self._map.corrupt_offsets.add(ref.offset)
+                self._map.problems.append(e)
+                log.warning("%s (skipped)", e)
+            return None
+
+    def _chunk_messages(self, ref: mf.ChunkRef, wanted: dict[int, tuple[str, Any]],
+                        lo: int | None, hi: int | None) -> list[tuple[int, int, int, Any]]:
+        """(t_ns, channel id, seq, payload view) of the wanted messages of one chunk."""
+        records = self._load(ref)
+        if records is None:
+            return []
+        out = []
+        unpack, msg = mf.MSG_HEAD.unpack_from, Opcode.MESSAGE
+        for op, body in mf.iter_records(records):
+            if op != msg:
+                continue
+            cid, seq, t, _ = unpack(body)
+            if cid in wanted and (lo is None or t >= lo) and (hi is None or t < hi):
+                out.append((t, cid, seq, body[22:]))
+        return out
+
+    def _emit(self, item: tuple[int, int, int, Any], wanted: dict) -> Recorded:
+        t, cid, seq, payload = item
+        topic, decode = wanted[cid]
+        if decode is None:
+            return Recorded(topic, t, bytes(payload), seq)
+        try:
+            return Recorded(topic, t, decode(payload), seq)
+        except CodecError as e:
+            raise CodecError(f"{self.path}: topic {topic!r} at t={t} ns: {e}") from None
+
+    def _merge(self, refs: list[mf.ChunkRef], wanted: dict, lo: int | None,
+               hi: int | None) -> Iterator[Recorded]:
+        """k-way merge of chunks by time; a chunk is read only when its turn comes."""
+        heap: list[tuple[int, int, int, tuple]] = []
+        n = len(refs)
+        for i, ref in enumerate(refs):
+            while heap and heap[0][0] < ref.start_ns:  # earlier than anything still unread
+                yield self._emit(heapq.heappop(heap)[3], wanted)
+            items = self._chunk_messages(ref, wanted, lo, hi)
+            times = [it[0] for it in items]
+            ordered = all(a <= b for a, b in zip(times, times[1:], strict=False))
+            if not heap and ordered and (i + 1 == n or ref.end_ns <= refs[i + 1].start_ns):
+                for it in items:  # fast path: no overlap with what comes next
+                    yield self._emit(it, wanted)
+                continue
+            for k, it in enumerate(items):
+                heapq.heappush(heap, (it[0], i, k, it))
+        while heap:
+            yield self._emit(heapq.heappop(heap)[3], wanted)
+
+    # --- lifecycle -------------------------------------------------------------------------
+
+    def metadata(self) -> dict[str, dict[str, str]]:
+        return dict(self._map.metadata)
+
+    def close(self) -> None:
+        self._f.close()
+
+    def __enter__(self) -> MissionReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

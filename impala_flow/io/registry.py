@@ -1,0 +1,168 @@
+"""CodecRegistry: which codec encodes a Python type and decodes a (schema name, version)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from typing import Any
+
+from .codec import SCHEMA_ENCODING, Codec, MessageCodec, builtin_codecs
+from .errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
+
+__all__ = ["CodecRegistry", "VERSION_KEY"]
+
+#: channel metadata key holding the schema version (MCAP schema records have a name only)
+VERSION_KEY = "impala_flow.schema_version"
+ENGINE = "impala_flow"
+
+
+class CodecRegistry:
+    """Codecs by Python type and by (schema name, version), each with the plugin that added it.
+
+    A registry is built per run (never global). ``CodecRegistry()`` holds the builtin
+    payloads (int, float, str, bytes, bool, numpy.ndarray, None);
+    :meth:`with_standard_types` adds every type of :mod:`impala_flow.msgs`.
+    """
+
+    def __init__(self, *, builtins: bool = True) -> None:
+        self._by_schema: dict[tuple[str, int], tuple[Codec, str]] = {}
+        self._by_type: dict[type, Codec] = {}
+        self._type_cache: dict[type, Codec | None] = {}
+        if builtins:
+            for c in builtin_codecs():
+                self.add_codec(c, plugin=ENGINE)
+
+    @classmethod
+    def with_standard_types(cls) -> CodecRegistry:
+        """A registry with the builtin payloads and every :mod:`impala_flow.msgs` type."""
+        from .. import msgs
+
+        reg = cls()
+        for t in msgs.BUILTIN_TYPES:
+            reg.add_type(t, plugin=ENGINE)
+        return reg
+
+    # --- registration ------------------------------------------------------------------
+
+    def add_type(self, cls: type, plugin: str = "?") -> Codec:
+        """Register the generic codec of ``@message`` class ``cls`` (and of its nested types).
+
+        Registering the same class again from the same plugin is a no-op; the same schema
+        name and version from another plugin (or another class) is a SchemaConflictError.
+        """
+        existing = self._by_type.get(cls)
+        if existing is not None and self.plugin_of(existing) == plugin:
+            return existing
+        codec = MessageCodec(cls)
+        self.add_codec(codec, plugin=plugin)
+        return codec
+
+    def add_codec(self, codec: Codec, plugin: str = "?") -> None:
+        """Register a codec (custom ones follow :class:`impala_flow.io.codec.Codec`)."""
+        key = (codec.schema_name, int(codec.schema_version))
+        prev = self._by_schema.get(key)
+        if prev is not None:
+            pc, pp = prev
+            if pc is codec:
+                return
+            raise SchemaConflictError(
+                f"schema {key[0]!r} version {key[1]} registered twice: by plugin {pp!r} "
+                f"({_qual(pc.py_type)}) and by plugin {plugin!r} ({_qual(codec.py_type)})")
+        tprev = self._by_type.get(codec.py_type)
+        if tprev is not None:
+            raise SchemaConflictError(
+                f"type {_qual(codec.py_type)} registered twice: as {tprev.schema_name!r} by "
+                f"plugin {self.plugin_of(tprev)!r} and as {codec.schema_name!r} by "
+                f"plugin {plugin!r}")
+        self._by_schema[key] = (codec, plugin)
+        self._by_type[codec.py_type] = codec
+        self._type_cache.clear()
+
+    # --- lookup --------------------------------------------------------------------------
+
+    def for_type(self, t: type) -> Codec:
+        """The codec encoding values of type ``t`` (exact type first, then its bases)."""
+        try:
+            c = self._type_cache[t]
+        except KeyError:
+            c = self._by_type.get(t)
+            if c is None:
+                c = next((self._by_type[b] for b in t.__mro__[1:] if b in self._by_type), None)
+            self._type_cache[t] = c
+        if c is None:
+            raise CodecError(f"no codec for Python type {_qual(t)}: register it with "
+                             "registry.add_type(cls, plugin=...) (a @message dataclass)")
+        return c
+
+    def find(self, name: str, version: int) -> Codec | None:
+        entry = self._by_schema.get((name, int(version)))
+        return None if entry is None else entry[0]
+
+    def for_schema(self, name: str, version: int, *, topic: str = "?") -> Codec:
+        """The codec of schema ``name`` version ``version``, or UnknownSchemaError."""
+        c = self.find(name, version)
+        if c is None:
+            known = sorted(v for n, v in self._by_schema if n == name)
+            detail = f"known versions: {known}" if known else "not registered by any plugin"
+            raise UnknownSchemaError(topic, name, version, detail)
+        return c
+
+    def for_channel(self, topic: str, schema_name: str, schema_encoding: str,
+                    schema_data: bytes, message_encoding: str,
+                    channel_metadata: dict[str, str] | None = None) -> Codec:
+        """The codec to decode one recorded channel, checking its stored field layout."""
+        stored: dict[str, Any] | None = None
+        version: int | None = None
+        meta = channel_metadata or {}
+        if schema_encoding == SCHEMA_ENCODING:
+            try:
+                stored = json.loads(bytes(schema_data))
+                version = int(stored["version"])
+            except (ValueError, KeyError, TypeError) as e:
+                raise UnknownSchemaError(topic, schema_name, None,
+                                         f"unreadable schema text: {e}") from None
+        elif VERSION_KEY in meta:
+            try:
+                version = int(meta[VERSION_KEY])
+            except ValueError:
+                version = None
+        if version is None:
+            known = sorted(v for n, v in self._by_schema if n == schema_name)
+            if len(known) != 1:
+                raise UnknownSchemaError(topic, schema_name, None,
+                                         f"encoding {schema_encoding!r}, no version")
+            version = known[0]
+        codec = self.for_schema(schema_name, version, topic=topic)
+        if codec.message_encoding != message_encoding:
+            raise UnknownSchemaError(topic, schema_name, version,
+                                     f"message encoding {message_encoding!r}, the codec "
+                                     f"reads {codec.message_encoding!r}")
+        if stored is not None and codec.schema_encoding == SCHEMA_ENCODING:
+            mine = json.loads(codec.schema_data())
+            if _layout(mine) != _layout(stored):
+                raise SchemaMismatchError(topic, schema_name, version,
+                                          "the recorded fields differ from the registered "
+                                          "type: the version should have been bumped")
+        return codec
+
+    def plugin_of(self, codec: Codec) -> str:
+        return self._by_schema[(codec.schema_name, int(codec.schema_version))][1]
+
+    def __iter__(self) -> Iterator[Codec]:
+        return (c for c, _ in self._by_schema.values())
+
+    def __len__(self) -> int:
+        return len(self._by_schema)
+
+    def __contains__(self, key: object) -> bool:
+        if isinstance(key, tuple):
+            return key in self._by_schema
+        return key in self._by_type
+
+
+def _layout(doc: dict[str, Any]) -> tuple:
+    return (doc.get("kind"), doc.get("fields"), doc.get("definitions"))
+
+
+def _qual(t: type) -> str:
+    return f"{t.__module__}.{t.__qualname__}"

@@ -1,0 +1,185 @@
+"""MissionWriter: record timestamped streams to a chunked, indexed MCAP file.
+
+One channel per stream (topic ``component/port``), ``log_time`` = ``publish_time`` = the
+sample timestamp (int ns). Chunks go to the operating system as soon as they are full
+(the file is opened unbuffered), and at least every ``flush_period_s`` of wall time, so a
+process killed with SIGKILL leaves a file readable up to its last complete chunk.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+from .codec import Codec
+from .errors import CodecError
+from .foxglove import MIRROR_KEY, FoxgloveMirror, foxglove_topic, mirror_for
+from .registry import VERSION_KEY, CodecRegistry
+
+__all__ = ["MissionWriter", "COMPRESSIONS"]
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}
+PROFILE = "impala-flow"
+
+
+class _UnbufferedFile:
+    """A write-through file: every chunk the mcap writer emits reaches the OS at once."""
+
+    def __init__(self, path: str) -> None:
+        self._f = open(path, "wb", buffering=0)  # noqa: SIM115 - closed by MissionWriter
+
+    def write(self, data: bytes | memoryview) -> int:
+        view, done = memoryview(data), 0
+        while done < len(view):
+            done += self._f.write(view[done:])
+        return done
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+    def flush(self) -> None:
+        return None
+
+    def close(self) -> None:
+        self._f.close()
+
+
+@dataclass
+class _Topic:
+    channel_id: int
+    codec: Codec
+    py_type: type
+    strict: bool  # message types: refuse a value of another type
+    mirror: FoxgloveMirror | None
+    mirror_id: int
+    count: int = 0
+
+
+class MissionWriter:
+    """Write a mission to ``path`` (MCAP, chunked, indexed, with summary).
+
+    ``codecs`` encodes every stream; ``metadata`` maps record names to string dicts
+    ("how it was made": graph YAML, resolved parameters, plugin versions) and is written
+    before any data. With ``foxglove=True`` poses, trajectories, grids and point sets are
+    also written in Foxglove schemas on ``/foxglove/<topic>``.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
+                 compression: str = "zstd", chunk_size: int = 1 << 20,
+                 metadata: dict[str, dict[str, str]] | None = None, foxglove: bool = True,
+                 flush_period_s: float | None = 1.0) -> None:
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}, "
+                             f"not {compression!r}")
+        self.path = os.fspath(path)
+        self.codecs = codecs
+        self.compression = compression
+        self.foxglove = foxglove
+        self._flush_period_s = flush_period_s
+        self._last_flush = time.monotonic()
+        self._topics: dict[str, _Topic] = {}
+        self._schemas: dict[tuple[str, str, bytes], int] = {}
+        self._file = _UnbufferedFile(self.path)
+        self._mcap = Writer(self._file, chunk_size=int(chunk_size),
+                            compression=COMPRESSIONS[compression])
+        self._mcap.start(profile=PROFILE, library="impala-flow")
+        self._closed = False
+        for name, data in (metadata or {}).items():
+            self.add_metadata(name, data)
+
+    # --- declaration -----------------------------------------------------------------------
+
+    def add_metadata(self, name: str, data: dict[str, Any]) -> None:
+        """Store one metadata record; non-string values are stored as JSON."""
+        self._mcap.add_metadata(str(name), {str(k): v if isinstance(v, str) else
+                                            json.dumps(v, sort_keys=True, default=str)
+                                            for k, v in data.items()})
+
+    def _schema_id(self, name: str, encoding: str, data: bytes) -> int:
+        key = (name, encoding, data)
+        sid = self._schemas.get(key)
+        if sid is None:
+            sid = self._schemas[key] = self._mcap.register_schema(name, encoding, data)
+        return sid
+
+    def add_topic(self, topic: str, msg_type: type | None) -> None:
+        """Declare stream ``topic`` carrying values of ``msg_type`` (``None`` = NoneType)."""
+        if topic in self._topics:
+            raise ValueError(f"{self.path}: topic {topic!r} added twice")
+        t = type(None) if msg_type is None else msg_type
+        codec = self.codecs.for_type(t)
+        sid = self._schema_id(codec.schema_name, codec.schema_encoding, codec.schema_data())
+        cid = self._mcap.register_channel(
+            topic, codec.message_encoding, sid,
+            {VERSION_KEY: str(codec.schema_version)})
+        mirror = mirror_for(t) if self.foxglove else None
+        mid = 0
+        if mirror is not None:
+            msid = self._schema_id(mirror.schema_name, "protobuf", mirror.schema_data)
+            mid = self._mcap.register_channel(foxglove_topic(topic), "protobuf", msid,
+                                              {MIRROR_KEY: topic})
+        strict = codec.py_type is t and hasattr(t, "__impala_schema__")
+        self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid)
+
+    @property
+    def topics(self) -> dict[str, type]:
+        return {k: v.py_type for k, v in self._topics.items()}
+
+    def count(self, topic: str) -> int:
+        """Messages written so far on ``topic``."""
+        return self._topics[topic].count
+
+    # --- data ------------------------------------------------------------------------------
+
+    def write(self, topic: str, t_ns: int, data: Any, seq: int = 0) -> None:
+        """Write one sample (``t_ns``: int nanoseconds on the mission clock, >= 0)."""
+        try:
+            tp = self._topics[topic]
+        except KeyError:
+            raise KeyError(f"{self.path}: unknown topic {topic!r}; call add_topic first") \
+                from None
+        if tp.strict and type(data) is not tp.py_type and not isinstance(data, tp.py_type):
+            raise CodecError(f"topic {topic!r} records {tp.py_type.__name__}, "
+                             f"got {type(data).__name__}")
+        if t_ns < 0:
+            raise ValueError(f"topic {topic!r}: negative timestamp {t_ns} ns")
+        payload = tp.codec.encode(data)
+        seq &= 0xFFFFFFFF
+        self._mcap.add_message(tp.channel_id, t_ns, payload, t_ns, seq)
+        if tp.mirror is not None:
+            self._mcap.add_message(tp.mirror_id, t_ns, tp.mirror.convert(data, t_ns), t_ns, seq)
+        tp.count += 1
+        if self._flush_period_s is not None:
+            now = time.monotonic()
+            if now - self._last_flush >= self._flush_period_s:
+                self.flush()
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress
+        better: the writer does this by itself when a chunk fills up)."""
+        self._mcap.flush()
+        self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        """Write the last chunk, the index and the summary; close the file. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._mcap.finish()
+        finally:
+            self._file.close()
+
+    def __enter__(self) -> MissionWriter:
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, e: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()

@@ -1,0 +1,20 @@
+"""Standard message types shared by the engine and every plugin.
+
+See :mod:`impala_flow.msgs._base` for the contract a message type follows.
+"""
+
+from ._base import freeze, is_message, message, schema_name, schema_version
+from .geometry import Grid, Points2D, Pose2D, Scalar, Trajectory2D, Twist2D, wrap_angle
+from .sensors import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig, Speed, YawRate
+
+BUILTIN_TYPES: tuple[type, ...] = (
+    Scalar, Pose2D, Twist2D, Trajectory2D, Grid, Points2D,
+    RadarConfig, RadarBeam, Speed, YawRate, ObjectStates,
+)
+
+__all__ = [
+    "message", "is_message", "schema_name", "schema_version", "freeze", "wrap_angle",
+    "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "Grid", "Points2D",
+    "RadarConfig", "RadarBeam", "Speed", "YawRate", "ObjectStates",
+    "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES",
+]

@@ -1,0 +1,94 @@
+"""The message contract shared by the engine, the codecs and every plugin.
+
+A message type is a ``dataclass`` decorated with :func:`message`, which gives it a
+schema name and version. Its fields are annotated with one of: ``int``, ``float``,
+``str``, ``bool``, ``bytes``, ``numpy.ndarray`` (any dtype and shape), another message
+type, or ``X | None`` of those. That contract is what lets one generic codec
+(:mod:`impala_flow.io`) record and replay every type exactly, with no pickle, and lets
+:func:`freeze` make every array read-only so one sample fans out with zero copies.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+__all__ = ["message", "is_message", "schema_name", "schema_version", "freeze"]
+
+
+def message(name: str, version: int = 1) -> Callable[[type[T]], type[T]]:
+    """Class decorator: make ``cls`` a dataclass message named ``name`` (e.g. ``impala.Pose2D``).
+
+    ``version`` is bumped whenever a field is added, removed or changes meaning; a reader
+    refuses a recording whose schema version it does not know.
+    """
+
+    def wrap(cls: type[T]) -> type[T]:
+        if not dataclasses.is_dataclass(cls):
+            cls = dataclasses.dataclass(eq=False)(cls)  # eq=False: arrays have no bool ==
+        cls.__impala_schema__ = (name, int(version))  # type: ignore[attr-defined]
+        return cls
+
+    return wrap
+
+
+def is_message(obj_or_type: Any) -> bool:
+    t = obj_or_type if isinstance(obj_or_type, type) else type(obj_or_type)
+    return "__impala_schema__" in t.__dict__
+
+
+def schema_name(t: type) -> str:
+    return t.__dict__["__impala_schema__"][0]
+
+
+def schema_version(t: type) -> int:
+    return t.__dict__["__impala_schema__"][1]
+
+
+# --- freezing -------------------------------------------------------------------------
+
+_IMMUTABLE = (int, float, str, bytes, bool, type(None), complex)
+_freezers: dict[type, Callable[[Any], None]] = {}
+
+
+def _freeze_array(a: np.ndarray) -> None:
+    a.flags.writeable = False
+
+
+def _noop(_: Any) -> None:
+    return None
+
+
+def _freezer_for(t: type) -> Callable[[Any], None]:
+    if issubclass(t, np.ndarray):
+        return _freeze_array
+    if issubclass(t, _IMMUTABLE):
+        return _noop
+    if dataclasses.is_dataclass(t):
+        names = tuple(f.name for f in dataclasses.fields(t))
+
+        def freeze_fields(obj: Any) -> None:
+            for n in names:
+                freeze(getattr(obj, n))
+
+        return freeze_fields
+    if issubclass(t, (tuple, list)):
+        return lambda seq: [freeze(v) for v in seq] and None
+    if issubclass(t, dict):
+        return lambda d: [freeze(v) for v in d.values()] and None
+    return _noop
+
+
+def freeze(data: Any) -> Any:
+    """Make every numpy array reachable from ``data`` read-only (in place) and return it."""
+    t = type(data)
+    f = _freezers.get(t)
+    if f is None:
+        f = _freezers[t] = _freezer_for(t)
+    f(data)
+    return data

@@ -1,0 +1,95 @@
+"""Planar geometry messages: poses, velocities, trajectories, grids, point sets."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import field
+
+import numpy as np
+
+from ._base import message
+
+__all__ = ["Scalar", "Pose2D", "Twist2D", "Trajectory2D", "Grid", "Points2D", "wrap_angle"]
+
+
+def wrap_angle(a: float) -> float:
+    """Wrap an angle to [-pi, pi)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@message("impala.Scalar", version=1)
+class Scalar:
+    """One number with its unit (``"m/s"``, ``"rad/s"``, ``""``)."""
+
+    value: float
+    unit: str = ""
+
+
+@message("impala.Pose2D", version=1)
+class Pose2D:
+    """A planar pose of ``child`` in ``frame``; ``cov_xyt`` is 3x3 over (x, y, theta) or empty."""
+
+    x_m: float
+    y_m: float
+    theta_rad: float
+    cov_xyt: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    frame: str = "map"
+
+    @classmethod
+    def interpolate(cls, a: Pose2D, b: Pose2D, w: float) -> Pose2D:
+        """Pose at fraction ``w`` from ``a`` to ``b``: linear in x, y; shortest arc in theta."""
+        dt = wrap_angle(b.theta_rad - a.theta_rad)
+        cov = a.cov_xyt if w < 0.5 else b.cov_xyt
+        return cls(
+            a.x_m + w * (b.x_m - a.x_m),
+            a.y_m + w * (b.y_m - a.y_m),
+            wrap_angle(a.theta_rad + w * dt),
+            cov,
+            a.frame,
+        )
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.x_m, self.y_m, self.theta_rad])
+
+
+@message("impala.Twist2D", version=1)
+class Twist2D:
+    """Planar velocity in the body frame: forward speed and yaw rate, with a 2x2 covariance."""
+
+    speed_mps: float
+    yaw_rate_radps: float
+    cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+
+@message("impala.Trajectory2D", version=1)
+class Trajectory2D:
+    """A whole planar trajectory: timestamps (int ns) and N x 3 poses (x_m, y_m, theta_rad)."""
+
+    t_ns: np.ndarray
+    xyt: np.ndarray
+    frame: str = "map"
+
+
+@message("impala.Grid", version=1)
+class Grid:
+    """A 2-D raster (row = y, column = x) of ``cell_m`` cells, cell (0, 0) centred at origin.
+
+    ``origin_x_m``/``origin_y_m`` are the centre of cell (0, 0) in ``frame``. ``pose`` is
+    the sensor pose the grid was built at (for sensor-centred images), or ``None``.
+    """
+
+    data: np.ndarray
+    cell_m: float
+    origin_x_m: float
+    origin_y_m: float
+    frame: str = "map"
+    pose: Pose2D | None = None
+
+
+@message("impala.Points2D", version=1)
+class Points2D:
+    """A set of planar points (N x 2, metres) with one value per point (intensity, RCS...)."""
+
+    xy_m: np.ndarray
+    value: np.ndarray
+    frame: str = "map"

@@ -1,0 +1,100 @@
+"""Sensor messages: rotating FMCW radar beams, odometer, gyro, truth of moving objects."""
+
+from __future__ import annotations
+
+from dataclasses import field
+
+import numpy as np
+
+from ._base import message
+
+__all__ = ["RadarConfig", "RadarBeam", "Speed", "YawRate", "ObjectStates", "SPEED_OF_LIGHT_MPS"]
+
+SPEED_OF_LIGHT_MPS = 299_792_458.0
+
+
+@message("impala.RadarConfig", version=1)
+class RadarConfig:
+    """How a rotating radar's beams were acquired; every beam carries the one it came from.
+
+    Triangular FMCW ("roof" modulation): a rising then a falling ramp of excursion
+    ``bandwidth_hz`` (Delta F) repeated at ``modulation_hz`` (F_m). Spectra are sampled in
+    beat frequency, ``bin_hz`` per bin. A power-only radar (Navtech) has
+    ``doppler = False``, ``bandwidth_hz``/``modulation_hz`` of its own and ``bin_hz`` chosen
+    so that :meth:`range_of_bin_m` gives its range bins.
+    """
+
+    name: str
+    f0_hz: float
+    bandwidth_hz: float
+    modulation_hz: float
+    bin_hz: float
+    n_bins: int
+    beam_width_rad: float
+    rotation_hz: float
+    beams_per_turn: int
+    range_min_m: float
+    range_max_m: float
+    doppler: bool = True
+    height_m: float = 1.3
+
+    @property
+    def range_per_bin_m(self) -> float:
+        """Range spanned by one beat-frequency bin (f_r = 4 dF Fm R / c)."""
+        return SPEED_OF_LIGHT_MPS * self.bin_hz / (4.0 * self.bandwidth_hz * self.modulation_hz)
+
+    @property
+    def range_resolution_m(self) -> float:
+        """Rayleigh range resolution dR = c / (2 dF)."""
+        return SPEED_OF_LIGHT_MPS / (2.0 * self.bandwidth_hz)
+
+    @property
+    def velocity_resolution_mps(self) -> float:
+        """Rayleigh velocity resolution dV = c Fm / (2 f0)."""
+        return SPEED_OF_LIGHT_MPS * self.modulation_hz / (2.0 * self.f0_hz)
+
+    def range_of_bin_m(self, bins: np.ndarray | float) -> np.ndarray | float:
+        return np.asarray(bins) * self.range_per_bin_m
+
+
+@message("impala.RadarBeam", version=1)
+class RadarBeam:
+    """One beam of a rotating radar, stamped at its own acquisition time.
+
+    ``azimuth_rad`` is the antenna angle in the vehicle frame (0 = heading, counter-
+    clockwise positive). ``up``/``down`` are the power spectra (linear power, float32) of
+    the rising and falling ramps, indexed by beat-frequency bin; a power-only radar leaves
+    ``down`` empty. ``turn`` counts antenna turns, ``index`` the beam within the turn.
+    """
+
+    azimuth_rad: float
+    turn: int
+    index: int
+    up: np.ndarray
+    down: np.ndarray
+    config: RadarConfig
+
+
+@message("impala.Speed", version=1)
+class Speed:
+    """Odometer forward speed."""
+
+    speed_mps: float
+
+
+@message("impala.YawRate", version=1)
+class YawRate:
+    """Gyrometer yaw rate (counter-clockwise positive)."""
+
+    yaw_rate_radps: float
+
+
+@message("impala.ObjectStates", version=1)
+class ObjectStates:
+    """States of several objects at one time (truth of movers, or tracker output)."""
+
+    ids: np.ndarray
+    xy_m: np.ndarray
+    v_xy_mps: np.ndarray
+    cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    frame: str = "map"

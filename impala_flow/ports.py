@@ -1,0 +1,312 @@
+"""Runtime ports: bounded input FIFOs with explicit overflow policies, sync groups,
+history buffers with interpolation, and outputs that fan samples out without copies.
+
+Input policies
+--------------
+``reactive`` (default)
+    FIFO; every sample pushed triggers one ``process`` call of the owner.
+``sampling``
+    keeps the last value; never triggers.
+``sync`` groups
+    inputs declared with the same ``sync="name"`` fire together when each holds a sample
+    within ``tolerance`` seconds of the others (like RTMaps synchronised readers or ROS
+    ApproximateTime). Each sample is used at most once. When the heads of all queues
+    are further apart than the tolerance, the earliest head can never be matched (every
+    later sample of the other streams is later still): it is discarded and counted as
+    ``unmatched``. When one stream stops, the samples of the others wait in their FIFOs
+    (up to ``maxsize``, then the overflow policy applies) and whatever is left at the end
+    of the run is counted as ``unmatched`` in the summary. Nothing is lost silently.
+``history=SECONDS``
+    any input may also keep the samples of the last SECONDS for ``at(t)`` (interpolated
+    look-up) and ``between(t0, t1)``.
+
+Overflow policies (``maxsize`` per input)
+    ``block``: the producer waits (real-time executor); the offline executor never drops
+    and reports the high-water mark. ``drop_oldest`` / ``drop_newest``: the sample is
+    dropped and counted. Every count is in the run summary and in ``InputPort.stats``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .msgs import freeze
+from .msgs.geometry import wrap_angle
+from .sample import Sample
+
+if TYPE_CHECKING:
+    from .component import Component, Input, Output
+
+__all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput"]
+
+POLICIES = ("reactive", "sampling")
+OVERFLOWS = ("block", "drop_oldest", "drop_newest")
+
+
+class EmptyInput(LookupError):
+    """``take()`` on an input that holds no sample."""
+
+
+class OutOfHistory(LookupError):
+    """``at(t)`` outside the span of an input's history buffer."""
+
+
+@dataclass
+class PortStats:
+    received: int = 0
+    dropped: int = 0
+    unmatched: int = 0
+    high_water: int = 0
+
+
+def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
+    """Value at fraction ``w`` between ``a`` and ``b`` (``w`` in [0, 1])."""
+    interp = getattr(type(a), "interpolate", None)
+    if interp is not None:
+        return interp(a, b, w)
+    if isinstance(a, (int, float, np.floating, np.integer)) and not isinstance(a, bool):
+        if angular:
+            return wrap_angle(float(a) + w * wrap_angle(float(b) - float(a)))
+        return float(a) + w * (float(b) - float(a))
+    if isinstance(a, np.ndarray) and a.dtype.kind in "fiu":
+        if angular:
+            d = (b - a + np.pi) % (2 * np.pi) - np.pi
+            return (a + w * d + np.pi) % (2 * np.pi) - np.pi
+        return a + w * (b - a)
+    return a if w < 1.0 else b  # not interpolable: zero-order hold
+
+
+class InputPort:
+    """One input of one component instance (see the module docstring for policies)."""
+
+    __slots__ = (
+        "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
+        "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
+        "trigger_name", "connected",
+    )
+
+    def __init__(self, owner: Component, name: str, decl: Input) -> None:
+        self.name = name
+        self.owner = owner
+        self.decl = decl
+        self.policy = decl.policy
+        self.maxsize = decl.maxsize
+        self.overflow = decl.overflow
+        self.angular = decl.angular
+        self.stats = PortStats()
+        self._fifo: deque[Sample] = deque()
+        self._last: Sample | None = None
+        self._history_ns = None if decl.history is None else int(round(decl.history * 1e9))
+        self._hist_t: list[int] = []
+        self._hist_s: list[Sample] = []
+        self.group: SyncGroup | None = None
+        self._current: Sample | None = None
+        self._cond: threading.Condition | None = None  # set by the real-time executor
+        self.trigger_name = name if decl.sync is None else decl.sync
+        self.connected = False
+
+    # --- producer side ------------------------------------------------------------
+    def push(self, s: Sample) -> bool:
+        """Store ``s``; return True when the owner must be triggered now."""
+        st = self.stats
+        st.received += 1
+        self._last = s
+        if self._history_ns is not None:
+            self._remember(s)
+        if self.policy == "sampling" and self.group is None:
+            return False
+        fifo = self._fifo
+        if len(fifo) >= self.maxsize:
+            if self.overflow == "drop_newest":
+                st.dropped += 1
+                return False
+            if self.overflow == "drop_oldest":
+                fifo.popleft()
+                st.dropped += 1
+            elif self._cond is not None:  # block: real-time producer waits for room
+                with self._cond:
+                    while len(fifo) >= self.maxsize:
+                        self._cond.wait(0.1)
+        fifo.append(s)
+        n = len(fifo)
+        if n > st.high_water:
+            st.high_water = n
+        if self.group is not None:
+            return self.group.match()
+        return True
+
+    def _remember(self, s: Sample) -> None:
+        ht, hs = self._hist_t, self._hist_s
+        if ht and s.timestamp < ht[-1]:
+            i = bisect.bisect_right(ht, s.timestamp)  # out-of-order: keep the buffer sorted
+            ht.insert(i, s.timestamp)
+            hs.insert(i, s)
+        else:
+            ht.append(s.timestamp)
+            hs.append(s)
+        horizon = ht[-1] - self._history_ns
+        if ht[0] < horizon:
+            k = bisect.bisect_left(ht, horizon)
+            # keep one sample before the horizon so at(horizon) still interpolates
+            k = max(0, k - 1)
+            if k:
+                del ht[:k]
+                del hs[:k]
+
+    # --- consumer side ------------------------------------------------------------
+    def take_sample(self) -> Sample:
+        """Remove and return the oldest sample (reactive), the matched one (sync group),
+        or the last one (sampling)."""
+        if self.group is not None:
+            s = self._current
+            if s is None:
+                raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' has no matched sample")
+            self._current = None
+            return s
+        if self.policy == "sampling":
+            if self._last is None:
+                raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' has received nothing yet")
+            return self._last
+        try:
+            s = self._fifo.popleft()
+        except IndexError:
+            raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
+        if self._cond is not None:
+            with self._cond:
+                self._cond.notify_all()
+        return s
+
+    def take(self) -> Any:
+        """The data of :meth:`take_sample`."""
+        return self.take_sample().data
+
+    def get(self, default: Any = None) -> Any:
+        """Last value received (any policy), or ``default``; never consumes."""
+        s = self._last
+        return default if s is None else s.data
+
+    def latest(self) -> Sample | None:
+        return self._last
+
+    @property
+    def ready(self) -> bool:
+        if self.group is not None:
+            return self._current is not None
+        if self.policy == "sampling":
+            return self._last is not None
+        return bool(self._fifo)
+
+    def __len__(self) -> int:
+        return len(self._fifo)
+
+    def at(self, t_ns: int, *, clamp: bool = False) -> Any:
+        """Value interpolated at ``t_ns`` from the history buffer.
+
+        Linear for numbers and arrays (shortest arc when the input is ``angular``), the
+        type's own ``interpolate(a, b, w)`` when it has one (``Pose2D``), the previous
+        value otherwise. Outside the buffered span: :class:`OutOfHistory`, or the nearest
+        end value with ``clamp=True``.
+        """
+        ht, hs = self._hist_t, self._hist_s
+        if self._history_ns is None:
+            raise OutOfHistory(f"input '{self.name}' of '{self.owner.name}' keeps no history (declare history=SECONDS)")
+        if not ht:
+            raise OutOfHistory(f"input '{self.name}' of '{self.owner.name}' has no history yet at t={t_ns} ns")
+        if t_ns <= ht[0] or t_ns >= ht[-1]:
+            if t_ns == ht[0]:
+                return hs[0].data
+            if t_ns == ht[-1]:
+                return hs[-1].data
+            if clamp:
+                return hs[0].data if t_ns < ht[0] else hs[-1].data
+            raise OutOfHistory(
+                f"input '{self.name}' of '{self.owner.name}': t={t_ns} ns is outside its history "
+                f"[{ht[0]}, {ht[-1]}] ns"
+            )
+        i = bisect.bisect_right(ht, t_ns)
+        t0, t1 = ht[i - 1], ht[i]
+        a, b = hs[i - 1].data, hs[i].data
+        if t1 == t0:
+            return b
+        return _interpolate(a, b, (t_ns - t0) / (t1 - t0), self.angular)
+
+    def between(self, t0_ns: int, t1_ns: int) -> list[Sample]:
+        """Samples of the history buffer with ``t0_ns <= timestamp <= t1_ns``."""
+        ht = self._hist_t
+        return self._hist_s[bisect.bisect_left(ht, t0_ns): bisect.bisect_right(ht, t1_ns)]
+
+    def leftover(self) -> int:
+        """Samples still waiting at the end of a run (counted as unmatched in sync groups)."""
+        return len(self._fifo)
+
+
+class SyncGroup:
+    """Inputs of one component that fire together (see the module docstring)."""
+
+    def __init__(self, name: str, members: list[InputPort], tolerance_s: float) -> None:
+        self.name = name
+        self.members = members
+        self.tolerance_ns = int(round(tolerance_s * 1e9))
+        for m in members:
+            m.group = self
+
+    def match(self) -> bool:
+        members = self.members
+        while True:
+            if any(m._current is not None for m in members):
+                return False  # previous match not consumed yet; retry after process()
+            heads = []
+            for m in members:
+                if not m._fifo:
+                    return False
+                heads.append(m._fifo[0].timestamp)
+            lo = min(heads)
+            if max(heads) - lo <= self.tolerance_ns:
+                for m in members:
+                    m._current = m._fifo.popleft()
+                return True
+            for m, h in zip(members, heads, strict=True):
+                if h == lo:
+                    m._fifo.popleft()
+                    m.stats.unmatched += 1
+
+
+class OutputPort:
+    """One output of one component instance; ``emit`` stamps, freezes and fans out."""
+
+    __slots__ = ("name", "owner", "decl", "origin", "count", "_seq", "_targets", "_deliver")
+
+    def __init__(self, owner: Component, name: str, decl: Output) -> None:
+        self.name = name
+        self.owner = owner
+        self.decl = decl
+        self.origin = f"{owner.name}.{name}"
+        self.count = 0
+        self._seq = 0
+        self._targets: list[tuple[InputPort, bool]] = []  # (input, delayed)
+        # set by the executor: deliver(input, sample, delayed)
+        self._deliver: Callable[[InputPort, Sample, bool], None] | None = None
+
+    def emit(self, t_ns: int, data: Any) -> Sample:
+        """Send ``data`` stamped ``t_ns`` (int nanoseconds) to every connected input."""
+        if type(t_ns) is not int:
+            if isinstance(t_ns, (bool, float)) or not isinstance(t_ns, (int, np.integer)):
+                raise TypeError(
+                    f"{self.origin}: timestamps are int nanoseconds, got {type(t_ns).__name__} {t_ns!r}"
+                )
+            t_ns = int(t_ns)
+        s = Sample(t_ns, freeze(data), self._seq, self.origin)
+        self._seq += 1
+        self.count += 1
+        deliver = self._deliver
+        if deliver is not None:
+            for inp, delayed in self._targets:
+                deliver(inp, s, delayed)
+        return s

@@ -1,0 +1,84 @@
+"""Registry: what the installed plugins provide, built fresh for every run."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .component import Component
+from .msgs import BUILTIN_TYPES, is_message, schema_name
+
+__all__ = ["Registry", "RegistrationError", "PluginInfo"]
+
+
+class RegistrationError(ValueError):
+    """Two plugins registered the same name, or a registration is malformed."""
+
+
+@dataclass
+class PluginInfo:
+    name: str
+    version: str = ""
+    module: str = ""
+    components: list[str] = field(default_factory=list)
+    types: list[str] = field(default_factory=list)
+
+
+class Registry:
+    """Components, message types and codecs by name, each tagged with its plugin.
+
+    ``registry.add_component(MyFilter)`` inside ``impala_flow_register`` registers
+    ``<plugin>.MyFilter``. A name registered twice is an error naming both plugins.
+    """
+
+    def __init__(self) -> None:
+        self.components: dict[str, type[Component]] = {}
+        self.types: dict[str, type] = {}
+        self.codecs: dict[str, Any] = {}
+        self.owner: dict[str, str] = {}  # registered name -> plugin name
+        self.plugins: dict[str, PluginInfo] = {}
+        self._current: PluginInfo | None = None
+        for t in BUILTIN_TYPES:
+            self.types[schema_name(t)] = t
+            self.owner[schema_name(t)] = "impala_flow"
+
+    def _claim(self, key: str) -> None:
+        plugin = self._current.name if self._current else "impala_flow"
+        if key in self.owner:
+            raise RegistrationError(
+                f"'{key}' is registered by two plugins: '{self.owner[key]}' and '{plugin}'"
+            )
+        self.owner[key] = plugin
+
+    def add_component(self, cls: type[Component], name: str | None = None) -> str:
+        """Register ``cls`` as ``<plugin>.<name or class name>``; return that name."""
+        if not (isinstance(cls, type) and issubclass(cls, Component)):
+            raise RegistrationError(f"add_component expects a Component subclass, got {cls!r}")
+        prefix = self._current.name if self._current else "local"
+        full = f"{prefix}.{name or cls.__name__}"
+        self._claim(full)
+        self.components[full] = cls
+        if not cls.__dict__.get("type_name"):
+            cls.type_name = full
+        if self._current:
+            self._current.components.append(full)
+        return full
+
+    def add_type(self, cls: type) -> str:
+        """Register a message type (a class decorated with ``impala_flow.msgs.message``)."""
+        if not is_message(cls):
+            raise RegistrationError(f"{cls!r} is not a message type (decorate it with @message)")
+        key = schema_name(cls)
+        self._claim(key)
+        self.types[key] = cls
+        if self._current:
+            self._current.types.append(key)
+        return key
+
+    def add_codec(self, name: str, codec: Any) -> None:
+        """Register a custom codec under ``name`` (see :mod:`impala_flow.io`)."""
+        self._claim(f"codec:{name}")
+        self.codecs[name] = codec
+
+    def component(self, type_name: str) -> type[Component]:
+        return self.components[type_name]

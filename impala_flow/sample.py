@@ -1,0 +1,33 @@
+"""Sample: one timestamped datum flowing on a connection."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["Sample"]
+
+
+class Sample:
+    """A datum stamped with its acquisition time.
+
+    ``timestamp`` is an ``int`` of nanoseconds on the mission clock (MCAP ``log_time``
+    uses the same unit); ``seq`` counts the samples of the output that emitted it;
+    ``origin`` names that output as ``component.port``. Arrays inside ``data`` are
+    read-only once emitted, so a sample is shared, never copied, by every input it
+    reaches.
+    """
+
+    __slots__ = ("timestamp", "data", "seq", "origin")
+
+    def __init__(self, timestamp: int, data: Any, seq: int = 0, origin: str = "") -> None:
+        self.timestamp = timestamp
+        self.data = data
+        self.seq = seq
+        self.origin = origin
+
+    @property
+    def t_ns(self) -> int:
+        return self.timestamp
+
+    def __repr__(self) -> str:
+        return f"Sample(t_ns={self.timestamp}, seq={self.seq}, origin={self.origin!r}, data={type(self.data).__name__})"

@@ -1,0 +1,83 @@
+"""RunSummary: what a run did, what it dropped, what failed. Nothing is lost silently."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["RunSummary", "ComponentError"]
+
+
+class ComponentError(RuntimeError):
+    """A component raised; the message names the component, the port and the sample time."""
+
+    def __init__(self, component: str, trigger: str, t_ns: int | None, phase: str, exc: BaseException):
+        self.component, self.trigger, self.t_ns, self.phase = component, trigger, t_ns, phase
+        self.__cause__ = exc
+        where = f"component '{component}'"
+        if phase == "process":
+            where += f", input '{trigger}', sample t={t_ns} ns"
+        else:
+            where += f", in {phase}()"
+        super().__init__(f"{where}: {type(exc).__name__}: {exc}")
+
+
+@dataclass
+class RunSummary:
+    graph: str = "graph"
+    mission_start_ns: int | None = None
+    mission_end_ns: int | None = None
+    wall_s: float = 0.0
+    events: int = 0
+    interrupted: bool = False
+    error: str | None = None
+    processed: dict[str, int] = field(default_factory=dict)
+    skipped: dict[str, int] = field(default_factory=dict)
+    emitted: dict[str, int] = field(default_factory=dict)  # "comp.port" -> count
+    inputs: dict[str, dict[str, int]] = field(default_factory=dict)  # "comp.port" -> stats
+    extra: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def mission_s(self) -> float:
+        if self.mission_start_ns is None or self.mission_end_ns is None:
+            return 0.0
+        return (self.mission_end_ns - self.mission_start_ns) / 1e9
+
+    @property
+    def speed_ratio(self) -> float:
+        return self.mission_s / self.wall_s if self.wall_s > 0 else float("inf")
+
+    def drops(self) -> dict[str, dict[str, int]]:
+        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m}}."""
+        out = {}
+        for k, st in self.inputs.items():
+            lost = {n: st[n] for n in ("dropped", "unmatched") if st.get(n)}
+            if lost:
+                out[k] = lost
+        return out
+
+    @property
+    def total_dropped(self) -> int:
+        return sum(sum(v.values()) for v in self.drops().values())
+
+    def format(self) -> str:
+        lines = [
+            f"graph '{self.graph}': {self.events} events, mission {self.mission_s:.3f} s "
+            f"in {self.wall_s:.3f} s wall (x{self.speed_ratio:.1f})"
+            + (" - INTERRUPTED" if self.interrupted else "")
+            + (f" - FAILED: {self.error}" if self.error else "")
+        ]
+        for name, n in self.processed.items():
+            extra = self.extra.get(name) or {}
+            bits = [f"{n} process calls"]
+            if self.skipped.get(name):
+                bits.append(f"{self.skipped[name]} skipped after errors")
+            bits += [f"{k}={v}" for k, v in extra.items()]
+            lines.append(f"  {name}: " + ", ".join(bits))
+        drops = self.drops()
+        if drops:
+            for k, v in drops.items():
+                lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
+        else:
+            lines.append("  no sample dropped")
+        return "\n".join(lines)

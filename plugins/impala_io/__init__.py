@@ -1,0 +1,1 @@
+"""Recording and replay of missions (MCAP): io.Recorder, io.Replayer."""
