@@ -72,13 +72,14 @@ class OfflineExecutor:
 
         def deliver(inp: InputPort, s: Sample, delayed: bool) -> None:
             nonlocal live_events
-            r = rank[inp.owner.name] + (n if delayed else 0)
-            push(heap, (s.timestamp, r, next(seq), _DELIVER, inp, s))
+            push(heap, (s.timestamp, inp.rank + n if delayed else inp.rank, next(seq), _DELIVER, inp, s))
             live_events += 1
 
         for c in order:
             for out in c.outputs.values():
                 out._deliver = deliver
+            for inp in c.inputs.values():
+                inp.rank = rank[c.name]
 
         started: list[Component] = []
         gens: dict[str, Iterator[tuple[int, str, Any]]] = {}
@@ -223,6 +224,8 @@ class OfflineExecutor:
                     m._fifo.clear()
                     m._current = None
             for name, p in c.inputs.items():
+                if p.group is None and p.policy == "reactive":
+                    p.stats.unconsumed = len(p._fifo)
                 s.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
             for name, o in c.outputs.items():
                 s.emitted[f"{c.name}.{name}"] = o.count

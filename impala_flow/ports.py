@@ -63,6 +63,7 @@ class PortStats:
     received: int = 0
     dropped: int = 0
     unmatched: int = 0
+    unconsumed: int = 0  # left in the FIFO at the end of the run, never taken
     high_water: int = 0
 
 
@@ -89,7 +90,7 @@ class InputPort:
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected",
+        "trigger_name", "connected", "rank",
     )
 
     def __init__(self, owner: Component, name: str, decl: Input) -> None:
@@ -111,6 +112,7 @@ class InputPort:
         self._cond: threading.Condition | None = None  # set by the real-time executor
         self.trigger_name = name if decl.sync is None else decl.sync
         self.connected = False
+        self.rank = 0  # graph order of the owner, set by the executor
 
     # --- producer side ------------------------------------------------------------
     def push(self, s: Sample) -> bool:

@@ -48,16 +48,16 @@ class RunSummary:
         return self.mission_s / self.wall_s if self.wall_s > 0 else float("inf")
 
     def drops(self) -> dict[str, dict[str, int]]:
-        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m}}."""
+        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m, "unconsumed": k}}."""
         out = {}
         for k, st in self.inputs.items():
-            lost = {n: st[n] for n in ("dropped", "unmatched") if st.get(n)}
+            lost = {n: st[n] for n in ("dropped", "unmatched", "unconsumed") if st.get(n)}
             if lost:
                 out[k] = lost
         return out
 
     @property
-    def total_dropped(self) -> int:
+    def total_lost(self) -> int:
         return sum(sum(v.values()) for v in self.drops().values())
 
     def format(self) -> str:
