@@ -8,7 +8,10 @@ import numpy as np
 
 from ._base import message
 
-__all__ = ["RadarConfig", "RadarBeam", "Speed", "YawRate", "ObjectStates", "SPEED_OF_LIGHT_MPS"]
+__all__ = [
+    "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
+    "SPEED_OF_LIGHT_MPS",
+]
 
 SPEED_OF_LIGHT_MPS = 299_792_458.0
 
@@ -75,11 +78,47 @@ class RadarBeam:
     config: RadarConfig
 
 
+@message("impala.RadarScan", version=1)
+class RadarScan:
+    """One antenna turn as a polar image: ``power[i, k]`` is beam ``i`` at range bin ``k``.
+
+    Every beam keeps its own acquisition time ``t_ns[i]`` and azimuth ``azimuth_rad[i]``
+    (vehicle frame), so motion during the turn can be corrected downstream. ``down`` is
+    the falling-ramp power (empty for a power-only radar).
+    """
+
+    turn: int
+    t_ns: np.ndarray
+    azimuth_rad: np.ndarray
+    power: np.ndarray
+    down: np.ndarray
+    config: RadarConfig
+
+
+@message("impala.RadarDetections", version=1)
+class RadarDetections:
+    """Targets detected in beams: one entry per detection, with its beam's time and azimuth.
+
+    ``radial_speed_mps`` follows the seed's sign (negative when the target approaches);
+    ``score`` is the pairing confidence in [0, 1]; ``beam`` the beam index in its turn.
+    """
+
+    turn: int
+    t_ns: np.ndarray
+    beam: np.ndarray
+    azimuth_rad: np.ndarray
+    range_m: np.ndarray
+    radial_speed_mps: np.ndarray
+    amplitude: np.ndarray
+    score: np.ndarray
+
+
 @message("impala.Speed", version=1)
 class Speed:
-    """Odometer forward speed."""
+    """Forward speed (odometer, or estimated: then ``std_mps`` is its standard deviation)."""
 
     speed_mps: float
+    std_mps: float = float("nan")
 
 
 @message("impala.YawRate", version=1)
