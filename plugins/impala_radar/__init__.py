@@ -1,0 +1,1 @@
+"""Rotating FMCW radar driver plugin: simulator, sensors and real-scan readers."""

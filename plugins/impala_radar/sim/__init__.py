@@ -1,0 +1,1 @@
+"""Radar simulator: vehicle trajectories, proprioceptive sensors, worlds."""
