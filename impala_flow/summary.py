@@ -69,7 +69,11 @@ class RunSummary:
         ]
         for name, n in self.processed.items():
             extra = self.extra.get(name) or {}
-            bits = [f"{n} process calls"]
+            emitted = {k.split(".", 1)[1]: v for k, v in self.emitted.items() if k.split(".", 1)[0] == name}
+            if n == 0 and emitted:  # a source: what it produced
+                bits = ["emitted " + ", ".join(f"{v} {port}" for port, v in emitted.items())]
+            else:
+                bits = [f"{n} process calls"]
             if self.skipped.get(name):
                 bits.append(f"{self.skipped[name]} skipped after errors")
             bits += [f"{k}={v}" for k, v in extra.items()]

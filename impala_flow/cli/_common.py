@@ -106,3 +106,33 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
     if on_summary:
         on_summary(summary)
     return EXIT_INTERRUPTED if summary.interrupted else EXIT_OK
+
+
+def record_source(session: Session, source: Source, path: str, topics: dict[str, str],
+                  compression: str = "zstd", progress: bool | None = None, quiet: bool = False) -> int:
+    """Record ``source``'s ports to ``path`` (``topics``: port -> topic) through the
+    installed ``io.Recorder``: the one recording path every mission file goes through."""
+    from ..build import RECORDER_TYPE
+
+    rec_cls = session.registry.components.get(RECORDER_TYPE)
+    if rec_cls is None:
+        raise CommandError(f"recording needs the '{RECORDER_TYPE}' component (io plugin missing or blocked)")
+    net = Network(name=f"record-{source.name}")
+    net.add(source)
+    origin = {topic: f"{source.name}.{port}" for port, topic in topics.items()}
+    graph = {"name": net.name, "components": {source.name: {"type": type(source).type_name or type(source).__name__,
+                                                            "params": source.params}}}
+    rec = net.add(rec_cls(name="record", path=str(path), topics=origin, compression=compression, graph=graph,
+                          plugins={n: p.version for n, p in session.registry.plugins.items()}))
+    for port, topic in topics.items():
+        net.connect(source.outputs[port], rec.inputs[topic])
+    bar = Progress(net, enabled=progress, desc=source.name)
+    try:
+        summary = session.run(net, speed="max", progress=bar)
+    except ComponentError as e:
+        bar.close()
+        raise CommandError(str(e), EXIT_FAILED) from e
+    bar.close()
+    if not quiet:
+        print(summary.format(), file=sys.stderr)
+    return EXIT_INTERRUPTED if summary.interrupted else EXIT_OK

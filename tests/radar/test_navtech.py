@@ -22,27 +22,11 @@ from impala_radar.navtech import (
 
 from impala_flow import msgs
 
-SAMPLE = "oxford-radar-robotcar-sample"
-
-
-def _find_sample() -> Path | None:
-    candidates = []
-    env = os.environ.get("IMPALA_FLOW_TEST_DATA")
-    if env:
-        candidates += [Path(env) / SAMPLE, Path(env)]
-    candidates.append(Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / SAMPLE)
-    for c in candidates:
-        if (c / "radar").is_dir():
-            return c
-    return None
-
+from ..datasets import oxford_sample_or_skip
 
 @pytest.fixture(scope="module")
 def sample() -> Path:
-    folder = _find_sample()
-    if folder is None:
-        pytest.skip("Oxford Radar RobotCar sample not found (set IMPALA_FLOW_TEST_DATA)")
-    return folder
+    return oxford_sample_or_skip()
 
 
 @pytest.fixture(scope="module")
