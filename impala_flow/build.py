@@ -27,7 +27,10 @@ def _tname(t: type) -> str:
     return getattr(t, "__name__", str(t))
 
 
-def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> dict[str, tuple[type[Component], dict, dict[str, Input], dict[str, Output]]]:
+PortTable = dict[str, tuple[type[Component], dict, dict[str, Input], dict[str, Output]]]
+
+
+def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> PortTable:
     from .graph import Problem, closest
 
     out: dict[str, Any] = {}
@@ -41,7 +44,8 @@ def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> dict
             continue
         values, bad = cls.validate_params(c.params)
         for k, msg in bad.items():
-            problems.append(Problem(c.param_locs.get(k, c.loc), f"component '{c.id}' ({c.type}): parameter '{k}': {msg}"))
+            problems.append(Problem(c.param_locs.get(k, c.loc),
+                                    f"component '{c.id}' ({c.type}): parameter '{k}': {msg}"))
         if bad:  # still check its connections against the class's own declarations
             out[c.id] = (cls, values, dict(cls.__inputs__), dict(cls.__outputs__))
             continue
@@ -64,7 +68,8 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
     topics: dict[str, str] = {}
     every = [f"{cid}.{p}" for cid, ports in outputs.items() for p in ports]
     if not isinstance(streams, list):
-        problems.append(Problem(spec.record_loc, "record streams must be a list of patterns like 'slam.pose' or 'radar/*'"))
+        problems.append(Problem(spec.record_loc,
+                                "record streams must be a list of patterns like 'slam.pose' or 'radar/*'"))
         return topics
     for item in streams:
         if isinstance(item, dict) and set(item) <= {"from", "topic"} and "from" in item:
@@ -74,7 +79,8 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
             topics[str(item.get("topic") or item["from"].replace(".", "/", 1))] = item["from"]
             continue
         if not isinstance(item, str):
-            problems.append(Problem(spec.record_loc, f"record: a stream is a pattern or {{from:, topic:}}, got {item!r}"))
+            problems.append(Problem(spec.record_loc,
+                                    f"record: a stream is a pattern or {{from:, topic:}}, got {item!r}"))
             continue
         hits = [o for o in every if fnmatch.fnmatchcase(o, item) or fnmatch.fnmatchcase(o.replace(".", "/", 1), item)]
         if not hits:
@@ -87,7 +93,7 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
 def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
     """Every problem of ``spec``: types, parameters, ports, port types, required inputs,
     cycles without a delay, record streams."""
-    from .graph import Problem, closest
+    from .graph import Problem, closest, did_you_mean
 
     problems: list[Problem] = []
     ports = _ports(spec, registry, problems)
@@ -98,7 +104,7 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
         for cid in (c.src, c.dst):
             if cid not in spec.components:
                 hint = closest(cid, spec.components)
-                problems.append(Problem(c.loc, f"connection '{c}': no component '{cid}'" + (f" (did you mean '{hint}'?)" if hint else "")))
+                problems.append(Problem(c.loc, f"connection '{c}': no component '{cid}'" + did_you_mean(hint)))
                 ok = False
         if not ok:
             continue
@@ -108,13 +114,13 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
             hint = closest(c.out, outs)
             problems.append(Problem(c.loc, f"connection '{c}': '{c.src}' ({spec.components[c.src].type}) "
                                     f"has no output '{c.out}'"
-                                    + (f" (did you mean '{hint}'?)" if hint else f"; outputs: {', '.join(outs) or 'none'}")))
+                                    + did_you_mean(hint, f"; outputs: {', '.join(outs) or 'none'}")))
             ok = False
         if ins is not None and c.inp not in ins:
             hint = closest(c.inp, ins)
             problems.append(Problem(c.loc, f"connection '{c}': '{c.dst}' ({spec.components[c.dst].type}) "
                                     f"has no input '{c.inp}'"
-                                    + (f" (did you mean '{hint}'?)" if hint else f"; inputs: {', '.join(ins) or 'none'}")))
+                                    + did_you_mean(hint, f"; inputs: {', '.join(ins) or 'none'}")))
             ok = False
         if ok and ins is not None:
             connected.add((c.dst, c.inp))
@@ -128,7 +134,8 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
     for cid, (_, _, ins, _) in ports.items():
         for name, decl in ins.items():
             if decl.required and (cid, name) not in connected and cid != RECORDER_ID:
-                problems.append(Problem(spec.components[cid].loc, f"component '{cid}': required input '{name}' is not connected"))
+                problems.append(Problem(spec.components[cid].loc,
+                                        f"component '{cid}': required input '{name}' is not connected"))
     import networkx as nx
 
     g = nx.DiGraph()
@@ -143,7 +150,8 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
         pass
     if spec.record is not None:
         if RECORDER_TYPE not in registry.components:
-            problems.append(Problem(spec.record_loc, f"record: needs the '{RECORDER_TYPE}' component (is the io plugin installed and not blocked?)"))
+            problems.append(Problem(spec.record_loc, f"record: needs the '{RECORDER_TYPE}' component "
+                                    "(is the io plugin installed and not blocked?)"))
         else:
             resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
     return problems
@@ -181,14 +189,48 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
     return net
 
 
+def _dot_id(text: str) -> str:
+    """A quoted DOT string (its backslashes are kept: label escapes like ``\\n`` work)."""
+    return '"' + text.replace('"', '\\"') + '"'
+
+
+def _record_text(text: str) -> str:
+    """Text of a record field, its special characters escaped."""
+    out = text.replace("\\", "\\\\")
+    for ch in "{}|<>":
+        out = out.replace(ch, "\\" + ch)
+    return out
+
+
 def to_dot(net: Network) -> str:
-    """Graphviz DOT text of a built network: one node per component, one edge per connection."""
-    lines = [f'digraph "{net.name}" {{', "  rankdir=LR;", '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", fontname="Helvetica"];']
+    """Graphviz DOT text of a built network.
+
+    One record-shaped node per component, in graph order: its inputs on the left, its
+    id and type in the middle, its outputs on the right. One edge per connection, from
+    the output field to the input field; delayed connections are dashed and do not
+    constrain the ranks. Render with ``dot -Tsvg``.
+    """
+    lines = [
+        f"digraph {_dot_id(net.name)} {{",
+        "  rankdir=LR;",
+        f"  label={_dot_id(net.name)}; labelloc=t; fontname=Helvetica;",
+        '  node [shape=record, style="rounded,filled", fillcolor="#eef3fb", fontname=Helvetica, fontsize=11];',
+        "  edge [fontname=Helvetica, fontsize=9, color=\"#4a5a70\"];",
+    ]
     for c in net.order():
         kind = type(c).type_name or type(c).__name__
-        lines.append(f'  "{c.name}" [label="{c.name}\\n{kind}"];')
+        ins = "|".join(f"<i{k}> {_record_text(n)}" for k, n in enumerate(c.inputs))
+        outs = "|".join(f"<o{k}> {_record_text(n)}" for k, n in enumerate(c.outputs))
+        middle = f"{_record_text(c.name)}\\n{_record_text(kind)}"
+        fields = ([f"{{{ins}}}"] if ins else []) + [middle] + ([f"{{{outs}}}"] if outs else [])
+        lines.append(f"  {_dot_id(c.name)} [label={_dot_id('{' + ' | '.join(fields) + '}')}];")
     for conn in net.connections:
-        style = ", style=dashed" if conn.delayed else ""
-        lines.append(f'  "{conn.src.owner.name}" -> "{conn.dst.owner.name}" [label="{conn.src.name} → {conn.dst.name}"{style}];')
+        src, dst = conn.src.owner, conn.dst.owner
+        o = list(src.outputs).index(conn.src.name)
+        i = list(dst.inputs).index(conn.dst.name)
+        attrs = f"tooltip={_dot_id(str(conn))}"
+        if conn.delayed:
+            attrs += ', style=dashed, constraint=false, label="delay"'
+        lines.append(f"  {_dot_id(src.name)}:o{o}:e -> {_dot_id(dst.name)}:i{i}:w [{attrs}];")
     lines.append("}")
-    return "\n".join(lines)
+    return "\n".join(lines) + "\n"

@@ -244,10 +244,10 @@ class Component:
         problems: dict[str, str] = {}
         for k in params:
             if k not in cls.__params__:
-                from .graph import closest
+                from .graph import closest, did_you_mean
 
                 hint = closest(k, cls.__params__)
-                problems[k] = "unknown parameter" + (f" (did you mean '{hint}'?)" if hint else "")
+                problems[k] = "unknown parameter" + did_you_mean(hint)
         for k, p in cls.__params__.items():
             if k in params:
                 try:

@@ -32,7 +32,7 @@ from .yamlloc import Loc, LocDict, LocList, YamlError, load_yaml
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
-    "load_graph_text", "closest", "parse_set", "TOP_KEYS",
+    "load_graph_text", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
 ]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
@@ -46,6 +46,10 @@ _CONN = re.compile(r"^\s*([^.\s]+)\.(\S+)\s*->\s*([^.\s]+)\.(\S+?)\s*(\[delay\])
 def closest(word: str, choices: Iterable[str], n: int = 1) -> str | None:
     m = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.5)
     return ", ".join(m) if m else None
+
+
+def did_you_mean(hint: str | None, otherwise: str = "") -> str:
+    return f" (did you mean '{hint}'?)" if hint else otherwise
 
 
 @dataclass(frozen=True)
@@ -158,7 +162,7 @@ def _check_keys(d: LocDict, allowed: Iterable[str], what: str, problems: list[Pr
         if k not in allowed:
             hint = closest(str(k), allowed)
             problems.append(Problem(d.where(k), f"unknown key '{k}' in {what}"
-                                    + (f" (did you mean '{hint}'?)" if hint else f"; expected one of {', '.join(allowed)}")))
+                                    + did_you_mean(hint, f"; expected one of {', '.join(allowed)}")))
 
 
 def parse_set(item: str) -> tuple[str, str, Any]:
@@ -235,7 +239,7 @@ def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = 
             continue
         if comp not in spec.components:
             hint = closest(comp, spec.components)
-            problems.append(Problem(None, f"--set {item}: no component '{comp}'" + (f" (did you mean '{hint}'?)" if hint else "")))
+            problems.append(Problem(None, f"--set {item}: no component '{comp}'" + did_you_mean(hint)))
             continue
         spec.components[comp].params[param] = value
     from .build import validate
@@ -259,12 +263,14 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
     clock = d.get("clock")
     if clock is not None:
         if not isinstance(clock, LocDict):
-            problems.append(Problem(d.value_where("clock"), "clock must be a mapping {mode: replay|realtime, speed: max|N}"))
+            problems.append(Problem(d.value_where("clock"),
+                                    "clock must be a mapping {mode: replay|realtime, speed: max|N}"))
         else:
             _check_keys(clock, CLOCK_KEYS, "clock", problems)
             mode = clock.get("mode", spec.clock_mode)
             if mode not in ("replay", "realtime"):
-                problems.append(Problem(clock.value_where("mode"), f"clock mode must be 'replay' or 'realtime', got {mode!r}"))
+                problems.append(Problem(clock.value_where("mode"),
+                                        f"clock mode must be 'replay' or 'realtime', got {mode!r}"))
             spec.clock_mode = mode
             if "speed" in clock:
                 from .clock import parse_speed
@@ -276,7 +282,8 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
     comps = d.get("components")
     if comps is not None:
         if not isinstance(comps, LocDict):
-            problems.append(Problem(d.value_where("components"), "components must be a mapping ID: {type: ..., params: ...}"))
+            problems.append(Problem(d.value_where("components"),
+                                    "components must be a mapping ID: {type: ..., params: ...}"))
         else:
             for cid, c in comps.items():
                 _merge_component(spec, str(cid), c, comps.where(cid), problems)
@@ -328,7 +335,8 @@ def _merge_component(spec: GraphSpec, cid: str, c: Any, loc: Loc, problems: list
         return
     on_error = c.get("on_error", "stop")
     if on_error not in ("stop", "skip"):
-        problems.append(Problem(c.value_where("on_error"), f"component '{cid}': on_error must be 'stop' or 'skip', got {on_error!r}"))
+        problems.append(Problem(c.value_where("on_error"),
+                                f"component '{cid}': on_error must be 'stop' or 'skip', got {on_error!r}"))
     spec.components[cid] = ComponentSpec(
         cid, str(c["type"]), dict(params), on_error, c.where("type"),
         dict(params.key_locs) if isinstance(params, LocDict) else {},
@@ -347,6 +355,7 @@ def _parse_connection(item: Any, loc: Loc, problems: list[Problem]) -> Connectio
         return None
     m = _CONN.match(item)
     if not m:
-        problems.append(Problem(loc, f"cannot read connection {item!r}: expected 'component.output -> component.input'"))
+        problems.append(Problem(loc, f"cannot read connection {item!r}: "
+                                     "expected 'component.output -> component.input'"))
         return None
     return ConnectionSpec(m.group(1), m.group(2), m.group(3), m.group(4), bool(m.group(5)), loc)

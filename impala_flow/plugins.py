@@ -50,7 +50,8 @@ def load_registry(pm: pluggy.PluginManager | None = None, extra: dict[str, Any] 
     versions = {pm.get_name(p): d.version for p, d in pm.list_plugin_distinfo()}
     for impl in reversed(pm.hook.impala_flow_register.get_hookimpls()):
         name = impl.plugin_name
-        info = PluginInfo(name=name, version=versions.get(name, ""), module=getattr(impl.plugin, "__name__", repr(impl.plugin)))
+        module = getattr(impl.plugin, "__name__", type(impl.plugin).__name__)
+        info = PluginInfo(name=name, version=versions.get(name, ""), module=module)
         reg.plugins[name] = info
         reg._current = info
         try:
