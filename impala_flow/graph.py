@@ -28,7 +28,7 @@ from typing import Any
 import yaml
 
 from .registry import Registry
-from .yamlloc import Loc, LocDict, LocList, YamlError, load_yaml
+from .yamlloc import Loc, LocDict, LocList, YamlError, load_value, load_yaml
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
@@ -172,7 +172,7 @@ def parse_set(item: str) -> tuple[str, str, Any]:
     key, raw = item.split("=", 1)
     comp, param = key.split(".", 1)
     try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
+        value = load_value(raw)
     except yaml.YAMLError:
         value = raw
     return comp.strip(), param.strip(), value

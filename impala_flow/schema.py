@@ -147,14 +147,14 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
     comp_defs, rules = _component_defs(registry)
     endpoint = {"type": "string", "pattern": PORT_PATTERN, "description": "component.port"}
     connection = {
-        "anyOf": [
-            {"type": "string", "pattern": CONNECTION_PATTERN,
-             "description": "'component.output -> component.input', '[delay]' suffix to break a cycle"},
-            {"type": "object", "additionalProperties": False, "required": ["from", "to"],
-             "properties": {"from": endpoint, "to": endpoint,
-                            "delay": {"type": "boolean", "default": False,
-                                      "description": "a delayed connection (breaks a cycle)"}}},
-        ]
+        "description": "'component.output -> component.input' ('[delay]' suffix to break a cycle), "
+                       "or {from: component.output, to: component.input, delay: false}",
+        "if": {"type": "string"},
+        "then": {"pattern": CONNECTION_PATTERN},
+        "else": {"type": "object", "additionalProperties": False, "required": ["from", "to"],
+                 "properties": {"from": endpoint, "to": endpoint,
+                                "delay": {"type": "boolean", "default": False,
+                                          "description": "a delayed connection (breaks a cycle)"}}},
     }
     stream = {
         "anyOf": [

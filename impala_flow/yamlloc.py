@@ -2,13 +2,31 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-__all__ = ["Loc", "LocDict", "LocList", "load_yaml", "YamlError"]
+__all__ = ["Loc", "LocDict", "LocList", "load_yaml", "load_value", "YamlError", "Loader"]
+
+
+class Loader(yaml.SafeLoader):
+    """The safe loader, reading floats as YAML 1.2 does (``1e-4`` is a float, not a string)."""
+
+
+Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def load_value(text: str) -> Any:
+    """One value from the command line (``--set k=1e-4``): YAML scalar or flow collection."""
+    return yaml.load(text, Loader=Loader) if text.strip() else ""  # noqa: S506 - Loader is a SafeLoader
 
 
 @dataclass(frozen=True)
@@ -58,7 +76,7 @@ def _loc(file: str, node: yaml.Node) -> Loc:
 _PLAIN_TAGS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:omap")
 
 
-def _convert(loader: yaml.SafeLoader, node: yaml.Node, file: str) -> Any:
+def _convert(loader: Loader, node: yaml.Node, file: str) -> Any:
     if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:
         raise YamlError(f"{_loc(file, node)}: invalid YAML: tag '{node.tag}' is not allowed (safe loader)")
     if isinstance(node, yaml.MappingNode):
@@ -88,7 +106,7 @@ def load_yaml(path: str | Path, text: str | None = None) -> Any:
             text = Path(path).read_text(encoding="utf-8")
         except OSError as e:
             raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
-    loader = yaml.SafeLoader(text)
+    loader = Loader(text)
     try:
         node = loader.get_single_node()
         if node is None:

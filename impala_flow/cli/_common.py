@@ -28,14 +28,14 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
 
 
 def parse_vars(items: list[str]) -> dict[str, Any]:
-    import yaml
+    from ..yamlloc import load_value
 
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
             raise CommandError(f"--var {item!r}: expected NAME=VALUE", EXIT_USAGE)
         k, v = item.split("=", 1)
-        out[k.strip()] = yaml.safe_load(v) if v.strip() else ""
+        out[k.strip()] = load_value(v)
     return out
 
 

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-from impala_flow import Component, Input, Output, Param, Periodic, Source
+from impala_flow import Component, Input, Output, Param, Source
 
 
 class Counter(Source):

@@ -179,3 +179,15 @@ def test_dot_export_lists_components_and_connections(tmp_path, session):
     dot = to_dot(session.build(session.load(p)))
     assert dot.startswith('digraph "d" {') and dot.rstrip().endswith("}")
     assert re.search(r'"src"(:\w+)*\s*->\s*"sink"(:\w+)*', dot) and "t.Counter" in dot
+
+
+def test_floats_in_exponent_notation_are_numbers(tmp_path, session):
+    p = write(tmp_path, "f.yaml", """
+        components:
+          src: {type: t.Counter, params: {n: 2, period_ns: 1000}}
+          scale: {type: t.Scale, params: {gain: 1e-3}}
+          sink: t.CollectingSink
+        connections: [src.out -> scale.x, scale.y -> sink.x]
+    """)
+    assert session.load(p).components["scale"].params["gain"] == 0.001
+    assert session.load(p, overrides=["scale.gain=2.5E+2"]).components["scale"].params["gain"] == 250.0
