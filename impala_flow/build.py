@@ -165,7 +165,9 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
     net.metadata["graph"] = spec.resolved()
     for c in spec.components.values():
         cls = registry.components[c.type]
-        net.add(cls(name=c.id, **c.params), on_error=c.on_error)
+        comp = cls(name=c.id, **c.params)
+        comp.registry = registry
+        net.add(comp, on_error=c.on_error)
     for c in spec.connections:
         net.connect(net.components[c.src].outputs[c.out], net.components[c.dst].inputs[c.inp], c.delayed)
     if spec.record is not None:
@@ -176,7 +178,9 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
         params = {k: v for k, v in spec.record.items() if k != "streams"}
         params.update(topics=topics, graph=spec.resolved(),
                       plugins={n: p.version for n, p in registry.plugins.items()})
-        rec = net.add(registry.components[RECORDER_TYPE](name=RECORDER_ID, **params))
+        rec = registry.components[RECORDER_TYPE](name=RECORDER_ID, **params)
+        rec.registry = registry
+        net.add(rec)
         for topic, origin in topics.items():
             cid, port = origin.split(".", 1)
             net.connect(net.components[cid].outputs[port], rec.inputs[topic])

@@ -216,6 +216,9 @@ class Component:
     __params__: ClassVar[dict[str, Param]] = {}
     __timers__: ClassVar[dict[str, Periodic]] = {}
     live: ClassVar[bool] = False
+    #: the run's registry (plugins, their components and message types), set by ``build``;
+    #: None for components wired by hand
+    registry: Any = None
     #: set by the registry: the YAML type name, e.g. ``radar.FuzzyPairer``
     type_name: ClassVar[str] = ""
 

@@ -116,7 +116,11 @@ class InputPort:
 
     # --- producer side ------------------------------------------------------------
     def push(self, s: Sample) -> bool:
-        """Store ``s``; return True when the owner must be triggered now."""
+        """Store ``s``; return True when the owner must be triggered now.
+
+        The real-time executor calls it holding the owner's lock (the re-entrant lock of
+        ``_cond``); the ``block`` policy waits on ``_cond``, which releases that lock.
+        """
         st = self.stats
         st.received += 1
         self._last = s
@@ -176,13 +180,18 @@ class InputPort:
             if self._last is None:
                 raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' has received nothing yet")
             return self._last
-        try:
-            s = self._fifo.popleft()
-        except IndexError:
-            raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
-        if self._cond is not None:
-            with self._cond:
-                self._cond.notify_all()
+        cond = self._cond
+        if cond is None:  # offline: one thread
+            try:
+                return self._fifo.popleft()
+            except IndexError:
+                raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
+        with cond:  # real time: pop under the owner's lock (producers check and drop under it)
+            try:
+                s = self._fifo.popleft()
+            except IndexError:
+                raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
+            cond.notify_all()  # a 'block' producer may be waiting for room
         return s
 
     def take(self) -> Any:
@@ -216,6 +225,12 @@ class InputPort:
         value otherwise. Outside the buffered span: :class:`OutOfHistory`, or the nearest
         end value with ``clamp=True``.
         """
+        if self._cond is not None:  # real time: producers insert/trim under the owner's lock
+            with self._cond:
+                return self._at(t_ns, clamp)
+        return self._at(t_ns, clamp)
+
+    def _at(self, t_ns: int, clamp: bool) -> Any:
         ht, hs = self._hist_t, self._hist_s
         if self._history_ns is None:
             raise OutOfHistory(f"input '{self.name}' of '{self.owner.name}' keeps no history (declare history=SECONDS)")
@@ -241,6 +256,10 @@ class InputPort:
 
     def between(self, t0_ns: int, t1_ns: int) -> list[Sample]:
         """Samples of the history buffer with ``t0_ns <= timestamp <= t1_ns``."""
+        if self._cond is not None:  # real time: see at()
+            with self._cond:
+                ht = self._hist_t
+                return self._hist_s[bisect.bisect_left(ht, t0_ns): bisect.bisect_right(ht, t1_ns)]
         ht = self._hist_t
         return self._hist_s[bisect.bisect_left(ht, t0_ns): bisect.bisect_right(ht, t1_ns)]
 
@@ -295,6 +314,10 @@ class OutputPort:
         self._targets: list[tuple[InputPort, bool]] = []  # (input, delayed)
         # set by the executor: deliver(input, sample, delayed)
         self._deliver: Callable[[InputPort, Sample, bool], None] | None = None
+
+    def connected_inputs(self) -> list[InputPort]:
+        """The inputs this output feeds (in connection order)."""
+        return [inp for inp, _ in self._targets]
 
     def emit(self, t_ns: int, data: Any) -> Sample:
         """Send ``data`` stamped ``t_ns`` (int nanoseconds) to every connected input."""

@@ -198,6 +198,9 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                 "streams": {"type": "array", "items": stream, "default": ["*"]},
                 "compression": {"type": "string", "description": "chunk compression, e.g. zstd, lz4 or none"},
                 "foxglove": {"type": "boolean", "description": "also write Foxglove well-known schemas"},
+                "chunk_size": {"type": "integer", "minimum": 1024, "description": "bytes per MCAP chunk"},
+                "maxsize": {"type": "integer", "minimum": 1,
+                            "description": "samples queued per recorded stream before its producer blocks"},
             },
         },
     }

@@ -124,6 +124,7 @@ def record_source(session: Session, source: Source, path: str, topics: dict[str,
                                                             "params": source.params}}}
     rec = net.add(rec_cls(name="record", path=str(path), topics=origin, compression=compression, graph=graph,
                           plugins={n: p.version for n, p in session.registry.plugins.items()}))
+    rec.registry = source.registry = session.registry
     for port, topic in topics.items():
         net.connect(source.outputs[port], rec.inputs[topic])
     bar = Progress(net, enabled=progress, desc=source.name)

@@ -351,13 +351,17 @@ class _BaseCodec:
 
     def encode(self, value: Any) -> bytes:
         """Encode ``value`` (an instance of :attr:`py_type`) to bytes."""
+        return b"".join(self.encode_parts(value))
+
+    def encode_parts(self, value: Any) -> list:
+        """The payload as a list of buffers (arrays are views, not copies) to concatenate."""
         parts: list = []
         try:
             self._enc(value, parts)
         except (struct.error, TypeError, AttributeError, OverflowError) as e:
             raise CodecError(f"cannot encode {type(value).__name__} with the "
                              f"{self.schema_name} codec: {e}") from e
-        return b"".join(parts)
+        return parts
 
     def decode(self, data: bytes | memoryview) -> Any:
         """Decode a payload; arrays are read-only views of ``data`` (no copy)."""

@@ -25,7 +25,13 @@ from mcap.opcode import Opcode
 
 from . import _mcapfile as mf
 from .codec import Codec
-from .errors import CodecError, CorruptChunkError, RecordingError, UnknownSchemaError
+from .errors import (
+    CodecError,
+    CorruptChunkError,
+    RecordingError,
+    TruncatedRecordingError,
+    UnknownSchemaError,
+)
 from .foxglove import MIRROR_KEY
 from .registry import CodecRegistry
 
@@ -50,7 +56,7 @@ class ChannelInfo:
     schema_encoding: str
     message_encoding: str
     count: int
-    rate_hz: float  # mean rate over the recording's duration
+    rate_hz: float  # (count - 1) / recording duration: mean rate over the whole mission
     mirror_of: str | None  # set on Foxglove mirror channels
     decodable: bool  # a codec of the registry reads it
 
@@ -127,11 +133,11 @@ class MissionReader:
             return fm
         fm = mf.scan(self.path, self._f, size, truncated=True)
         if fm.truncated and self.strict:
-            raise mf.TruncatedRecordingError(
+            raise TruncatedRecordingError(
                 self.path, f"truncated recording (no footer/summary); "
                            f"{sum(fm.counts.values())} messages recoverable")
         if fm.truncated:
-            log.warning("%s: truncated recording, %d messages recovered", self.path,
+            log.info("%s: truncated recording, %d messages recovered", self.path,
                         sum(fm.counts.values()))
         return fm
 
@@ -185,7 +191,7 @@ class MissionReader:
             n = fm.counts.get(cid, 0)
             chans.append(ChannelInfo(
                 ch.topic, s.name if s else "", s.encoding if s else "", ch.message_encoding,
-                n, n / dur_s if dur_s > 0 else 0.0, ch.metadata.get(MIRROR_KEY),
+                n, max(n - 1, 0) / dur_s if dur_s > 0 else 0.0, ch.metadata.get(MIRROR_KEY),
                 not isinstance(self._codec(cid), UnknownSchemaError)))
         comps = sorted({c.compression or "none" for c in fm.chunks})
         corrupt = len(fm.corrupt_offsets)

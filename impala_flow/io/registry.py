@@ -42,6 +42,20 @@ class CodecRegistry:
             reg.add_type(t, plugin=ENGINE)
         return reg
 
+    @classmethod
+    def from_plugins(cls, plugins: Any) -> CodecRegistry:
+        """Standard types plus the message types and codecs of an engine
+        :class:`impala_flow.registry.Registry` (what the plugins of a run registered)."""
+        reg = cls.with_standard_types()
+        owner = getattr(plugins, "owner", {})
+        for name, t in getattr(plugins, "types", {}).items():
+            if t not in reg:
+                reg.add_type(t, plugin=owner.get(name, "?"))
+        for name, codec in getattr(plugins, "codecs", {}).items():
+            if (codec.schema_name, codec.schema_version) not in reg:
+                reg.add_codec(codec, plugin=owner.get(f"codec:{name}", "?"))
+        return reg
+
     # --- registration ------------------------------------------------------------------
 
     def add_type(self, cls: type, plugin: str = "?") -> Codec:

@@ -11,12 +11,12 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
-from mcap.writer import CompressionType, Writer
-
+from ._mcapwriter import McapWriter
 from .codec import Codec
 from .errors import CodecError
 from .foxglove import MIRROR_KEY, FoxgloveMirror, foxglove_topic, mirror_for
@@ -24,8 +24,8 @@ from .registry import VERSION_KEY, CodecRegistry
 
 __all__ = ["MissionWriter", "COMPRESSIONS"]
 
-COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                "none": CompressionType.NONE}
+#: compression name -> MCAP chunk compression string
+COMPRESSIONS = {"zstd": "zstd", "lz4": "lz4", "none": ""}
 PROFILE = "impala-flow"
 
 
@@ -59,6 +59,7 @@ class _Topic:
     strict: bool  # message types: refuse a value of another type
     mirror: FoxgloveMirror | None
     mirror_id: int
+    parts: Callable[[Any], list] | None = None  # codec's encode_parts, when it has one
     count: int = 0
 
 
@@ -87,8 +88,7 @@ class MissionWriter:
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
-        self._mcap = Writer(self._file, chunk_size=int(chunk_size),
-                            compression=COMPRESSIONS[compression])
+        self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
         self._mcap.start(profile=PROFILE, library="impala-flow")
         self._closed = False
         for name, data in (metadata or {}).items():
@@ -126,7 +126,8 @@ class MissionWriter:
             mid = self._mcap.register_channel(foxglove_topic(topic), "protobuf", msid,
                                               {MIRROR_KEY: topic})
         strict = codec.py_type is t and hasattr(t, "__impala_schema__")
-        self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid)
+        self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid,
+                                     getattr(codec, "encode_parts", None))
 
     @property
     def topics(self) -> dict[str, type]:
@@ -150,11 +151,15 @@ class MissionWriter:
                              f"got {type(data).__name__}")
         if t_ns < 0:
             raise ValueError(f"topic {topic!r}: negative timestamp {t_ns} ns")
-        payload = tp.codec.encode(data)
+        parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
+        size = 0
+        for p in parts:
+            size += len(p) if type(p) is bytes else memoryview(p).nbytes
         seq &= 0xFFFFFFFF
-        self._mcap.add_message(tp.channel_id, t_ns, payload, t_ns, seq)
+        self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
         if tp.mirror is not None:
-            self._mcap.add_message(tp.mirror_id, t_ns, tp.mirror.convert(data, t_ns), t_ns, seq)
+            pb = tp.mirror.convert(data, t_ns)
+            self._mcap.add_message(tp.mirror_id, t_ns, [pb], len(pb), seq)
         tp.count += 1
         if self._flush_period_s is not None:
             now = time.monotonic()
@@ -164,7 +169,7 @@ class MissionWriter:
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress
         better: the writer does this by itself when a chunk fills up)."""
-        self._mcap.flush()
+        self._mcap.flush_chunk()
         self._last_flush = time.monotonic()
 
     def close(self) -> None:

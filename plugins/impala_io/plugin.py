@@ -1,8 +1,16 @@
 """Entry point of the io plugin: registers io.Recorder and io.Replayer."""
 
+from __future__ import annotations
+
+from typing import Any
+
 from impala_flow.plugins import hookimpl
+
+from .recorder import Recorder
+from .replayer import Replayer
 
 
 @hookimpl
-def impala_flow_register(registry):  # type: ignore[no-untyped-def]
-    pass  # filled as the recorder and the replayer land (issue 3)
+def impala_flow_register(registry: Any) -> None:
+    registry.add_component(Recorder)
+    registry.add_component(Replayer)

@@ -1,0 +1,87 @@
+"""``impala-flow info FILE``: what a recording holds, and whether it is complete."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import asdict
+
+from ..io import CodecRegistry, MissionReader, RecordingError, RecordingInfo
+from . import EXIT_FAILED, CommandError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "info", help="describe a recording (MCAP)",
+        description="Channels with schemas, counts and rates; start, end, duration, "
+        "compression; whether the file is truncated (and how many messages were recovered) "
+        "and any corrupt chunk; how the recording was made (its metadata).",
+        epilog="example: impala-flow info missions/beynes.mcap --verify",
+    )
+    p.add_argument("file", metavar="FILE", help="MCAP recording")
+    p.add_argument("--verify", action="store_true", help="read and CRC-check every chunk")
+    p.add_argument("--metadata", action="store_true", help="print the metadata records in full")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def codecs() -> CodecRegistry:
+    """Standard types plus what the installed plugins register (standard only on failure)."""
+    try:
+        from ..plugins import load_registry
+
+        return CodecRegistry.from_plugins(load_registry())
+    except Exception:  # noqa: BLE001 - a broken plugin must not hide a file's description
+        return CodecRegistry.with_standard_types()
+
+
+def _t(t_ns: int | None) -> str:
+    return "-" if t_ns is None else f"{t_ns / 1e9:.9f} s"
+
+
+def format_info(info: RecordingInfo, metadata: bool = False) -> str:
+    state = "complete"
+    if info.truncated:
+        state = f"TRUNCATED - {info.recovered_count} messages recovered"
+    lines = [
+        f"file:         {info.path} ({info.size_bytes / 1e6:.1f} MB, {state})",
+        f"start:        {_t(info.start_ns)}",
+        f"end:          {_t(info.end_ns)}",
+        f"duration:     {info.duration_s:.3f} s",
+        f"messages:     {info.message_count} in {info.chunk_count} chunks, "
+        f"compression {info.compression}",
+        "channels:",
+    ]
+    width = max((len(c.topic) for c in info.channels), default=5)
+    for c in info.channels:
+        note = f" (Foxglove view of {c.mirror_of})" if c.mirror_of else (
+            "" if c.decodable else " (no codec installed for this schema)")
+        lines.append(f"  {c.topic:<{width}}  {c.count:>9}  {c.rate_hz:>9.2f} Hz  "
+                     f"{c.schema} [{c.schema_encoding}]{note}")
+    if info.corrupt_chunks:
+        lines.append(f"corrupt chunks: {info.corrupt_chunks} (skipped)")
+    lines += [f"problem: {p}" for p in info.problems]
+    for name, rec in info.metadata.items():
+        if metadata:
+            lines.append(f"metadata {name}:")
+            lines += [f"  {k}: {v}" for k, v in rec.items()]
+        else:
+            lines.append(f"metadata {name}: {', '.join(rec) or '(empty)'}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        with MissionReader(args.file, codecs()) as r:
+            if args.verify:
+                r.verify()
+            info = r.info()
+    except RecordingError as e:
+        raise CommandError(str(e), EXIT_FAILED) from None
+    if args.json:
+        d = asdict(info)
+        d["duration_ns"] = info.duration_ns
+        print(json.dumps(d, default=str))
+    else:
+        print(format_info(info, args.metadata))
+    return EXIT_FAILED if info.corrupt_chunks else 0

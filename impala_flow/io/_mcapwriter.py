@@ -1,0 +1,201 @@
+"""A lean MCAP writer: the hot path (message records into the chunk) without per-message
+objects, every index and summary record written with :mod:`mcap.records`.
+
+Why not ``mcap.writer.Writer``: it builds a ``Message`` object and five ``struct`` calls
+per message and copies each payload three times; for small messages that overhead is
+the whole cost. The file layout is the same (chunked, message indexes after each chunk,
+summary with schemas, channels, statistics, chunk and metadata indexes, summary offsets,
+footer CRC), and the tests read every file back with ``mcap.reader.make_reader``.
+Schemas, channels and metadata are written between chunks, straight to the file, so a
+damaged chunk never takes a channel definition with it.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections import defaultdict
+from typing import Any
+
+import lz4.frame
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Channel,
+    ChunkIndex,
+    DataEnd,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+
+from ._mcapfile import MAGIC
+
+_MSG = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log_time, publish_time
+_CHUNK = struct.Struct("<BQQQQI")  # opcode, length, start, end, uncompressed size, crc
+_U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
+_FOOTER = struct.Struct("<BQQQ")
+
+
+class McapWriter:
+    """Write MCAP records to ``stream`` (``write``/``tell``), chunking messages."""
+
+    def __init__(self, stream: Any, chunk_size: int, compression: str) -> None:
+        if compression not in ("zstd", "lz4", ""):
+            raise ValueError(f"unknown compression {compression!r}")
+        self._out = stream
+        self._chunk_size = chunk_size
+        self._compression = compression
+        self._zstd = zstandard.ZstdCompressor() if compression == "zstd" else None
+        self._buf = bytearray()
+        self._index: dict[int, list[int]] = {}  # channel -> [t, offset, t, offset, ...]
+        self._start = self._end = 0
+        self._n_chunk = 0
+        self.schemas: list[Schema] = []
+        self.channels: list[Channel] = []
+        self._chunk_indexes: list[ChunkIndex] = []
+        self._metadata_indexes: list[MetadataIndex] = []
+        self.counts: dict[int, int] = defaultdict(int)
+        self.message_count = 0
+        self._t_min = self._t_max = 0
+
+    def _record(self, record: Any) -> tuple[int, int]:
+        rb = RecordBuilder()
+        record.write(rb)
+        data = rb.end()
+        at = self._out.tell()
+        self._out.write(data)
+        return at, len(data)
+
+    def start(self, profile: str, library: str) -> None:
+        self._out.write(MAGIC)
+        self._record(Header(profile, library))
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        s = Schema(id=len(self.schemas) + 1, name=name, encoding=encoding, data=data)
+        self.schemas.append(s)
+        self._record(s)
+        return s.id
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str]) -> int:
+        c = Channel(id=len(self.channels) + 1, topic=topic, message_encoding=message_encoding,
+                    metadata=dict(metadata), schema_id=schema_id)
+        self.channels.append(c)
+        self._record(c)
+        return c.id
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        at, length = self._record(Metadata(name=name, metadata=data))
+        self._metadata_indexes.append(MetadataIndex(offset=at, length=length, name=name))
+
+    def add_message(self, channel_id: int, t_ns: int, parts: list, size: int,
+                    seq: int) -> None:
+        """Append one message whose payload is the concatenation of ``parts`` (``size``
+        bytes): each part is copied once, into the chunk."""
+        buf = self._buf
+        off = len(buf)
+        buf += _MSG.pack(Opcode.MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
+        for p in parts:
+            buf += p
+        idx = self._index.get(channel_id)
+        if idx is None:
+            idx = self._index[channel_id] = []
+        idx += (t_ns, off)
+        if self._n_chunk == 0:
+            self._start = self._end = t_ns
+        elif t_ns < self._start:
+            self._start = t_ns
+        elif t_ns > self._end:
+            self._end = t_ns
+        self._n_chunk += 1
+        self.counts[channel_id] += 1
+        if self.message_count == 0:
+            self._t_min = self._t_max = t_ns
+        elif t_ns < self._t_min:
+            self._t_min = t_ns
+        elif t_ns > self._t_max:
+            self._t_max = t_ns
+        self.message_count += 1
+        if len(buf) >= self._chunk_size:
+            self.flush_chunk()
+
+    def flush_chunk(self) -> None:
+        """Write the chunk in progress (if any) and its message indexes."""
+        if not self._n_chunk:
+            return
+        records = self._buf
+        crc = zlib.crc32(records)
+        if self._zstd is not None:
+            data: bytes | bytearray = self._zstd.compress(records)
+        elif self._compression == "lz4":
+            data = lz4.frame.compress(records)
+        else:
+            data = records
+        comp = self._compression.encode()
+        length = 8 + 8 + 8 + 4 + 4 + len(comp) + 8 + len(data)
+        head = (_CHUNK.pack(Opcode.CHUNK, length, self._start, self._end, len(records), crc)
+                + _U32.pack(len(comp)) + comp + _U64.pack(len(data)))
+        out = self._out
+        chunk_at = out.tell()
+        out.write(head)
+        out.write(data)
+        index_at = chunk_at + len(head) + len(data)
+        offsets: dict[int, int] = {}
+        pieces = []
+        pos = index_at
+        for cid, pairs in self._index.items():
+            body = struct.pack(f"<HI{len(pairs)}Q", cid, 8 * len(pairs), *pairs)
+            rec = struct.pack("<BQ", Opcode.MESSAGE_INDEX, len(body)) + body
+            offsets[cid] = pos
+            pos += len(rec)
+            pieces.append(rec)
+        out.write(b"".join(pieces))
+        self._chunk_indexes.append(ChunkIndex(
+            message_start_time=self._start, message_end_time=self._end,
+            chunk_start_offset=chunk_at, chunk_length=len(head) + len(data),
+            message_index_offsets=offsets, message_index_length=pos - index_at,
+            compression=self._compression, compressed_size=len(data),
+            uncompressed_size=len(records)))
+        self._buf = bytearray()
+        self._index = {}
+        self._n_chunk = 0
+
+    def finish(self) -> None:
+        """Last chunk, data end, summary (with offsets and CRC), footer, magic."""
+        self.flush_chunk()
+        self._record(DataEnd(0))
+        summary_at = self._out.tell()
+        rb = RecordBuilder()
+        groups: list[SummaryOffset] = []
+
+        def group(opcode: int, records: list[Any]) -> None:
+            start = rb.count
+            for r in records:
+                r.write(rb)
+            if records:
+                groups.append(SummaryOffset(group_opcode=opcode, group_start=summary_at + start,
+                                            group_length=rb.count - start))
+
+        stats = Statistics(
+            message_count=self.message_count, schema_count=len(self.schemas),
+            channel_count=len(self.channels), attachment_count=0,
+            metadata_count=len(self._metadata_indexes), chunk_count=len(self._chunk_indexes),
+            message_start_time=self._t_min, message_end_time=self._t_max,
+            channel_message_counts=dict(self.counts))
+        group(Opcode.SCHEMA, self.schemas)
+        group(Opcode.CHANNEL, self.channels)
+        group(Opcode.STATISTICS, [stats])
+        group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        group(Opcode.METADATA_INDEX, self._metadata_indexes)
+        offsets_at = summary_at + rb.count
+        for g in groups:
+            g.write(rb)
+        summary = rb.end()
+        footer = _FOOTER.pack(Opcode.FOOTER, 20, summary_at, offsets_at)
+        crc = zlib.crc32(footer, zlib.crc32(summary))
+        self._out.write(summary + footer + _U32.pack(crc) + MAGIC)

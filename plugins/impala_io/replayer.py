@@ -1,0 +1,158 @@
+"""io.Replayer: a recorded mission as a source; recorded topics become output ports."""
+
+from __future__ import annotations
+
+import fnmatch
+import logging
+from collections.abc import Iterator
+from typing import Any
+
+from impala_flow.component import Component, Input, Output, Param, Source
+from impala_flow.io import MissionReader, UnknownSchemaError
+
+from ._codecs import run_codecs
+
+__all__ = ["Replayer", "TIME_JUMP"]
+
+log = logging.getLogger(__name__)
+
+#: output announcing a loop: data = offset (int ns) added to recorded times from then on
+TIME_JUMP = "time_jump"
+
+
+def _select(reader: MissionReader, streams: list[str], rename: dict[str, str]) -> dict[str, str]:
+    """Recorded topic -> output port, for the decodable topics matching ``streams``."""
+    recorded = list(reader.topics)
+    chosen: list[str] = []
+    for pattern in streams or ["*"]:
+        hits = [t for t in recorded if fnmatch.fnmatchcase(t, pattern)]
+        if not hits:
+            raise ValueError(f"{reader.path}: stream {pattern!r} matches no recorded topic "
+                             f"(recorded: {', '.join(sorted(recorded))})")
+        explicit = not any(c in pattern for c in "*?[")
+        for t in hits:
+            try:
+                reader.topic_type(t)
+            except UnknownSchemaError:
+                if explicit:
+                    raise
+                log.warning("%s: topic %r skipped: no codec for its schema", reader.path, t)
+                continue
+            if t not in chosen:
+                chosen.append(t)
+    unknown = set(rename) - set(recorded)
+    if unknown:
+        raise ValueError(f"rename: no recorded topic {sorted(unknown)}")
+    ports = {t: str(rename.get(t, t)) for t in chosen}
+    if len(set(ports.values())) != len(ports) or TIME_JUMP in ports.values():
+        raise ValueError(f"rename: output names must be unique and not {TIME_JUMP!r}")
+    return ports
+
+
+class Replayer(Source):
+    """Replays the recording ``path``: every selected topic is an output port.
+
+    ``streams`` selects topics (glob patterns, default all), ``rename`` maps a recorded
+    topic to another port name. ``start_s``/``end_s`` are seconds from the recording's first
+    sample: the replay seeks there through the MCAP index, never scanning what it skips.
+    Memory is bounded: samples stream chunk by chunk. Pacing (``speed``) is the clock's
+    job. With ``loops`` > 1 (0 = forever) the mission is replayed again, shifted so that
+    mission time keeps increasing; each jump is announced on output ``time_jump`` (the
+    offset in ns) and by calling ``on_time_jump(offset_ns)`` of every component
+    downstream, after everything earlier than the jump has been processed. A truncated
+    recording replays what it holds.
+    """
+
+    path = Param(str, doc="MCAP recording")
+    streams = Param(list, default=[], doc="topics to replay (glob patterns); empty = all")
+    rename = Param(dict, default={}, doc="recorded topic -> output port name")
+    start_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to start at")
+    end_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to stop at "
+                                                   "(0 = the end)")
+    loops = Param(int, default=1, ge=0, doc="number of passes (0 = forever)")
+
+    @classmethod
+    def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
+        with MissionReader(params["path"], run_codecs()) as r:
+            ports = _select(r, params["streams"], params["rename"])
+            outs = {p: Output(r.topic_type(t), doc=f"recorded topic {t}")
+                    for t, p in ports.items()}
+        outs[TIME_JUMP] = Output(int, doc="loop offset (int ns) added to mission time")
+        return {}, outs
+
+    def _window(self, r: MissionReader) -> tuple[int | None, int | None]:
+        info = r.info()
+        if info.start_ns is None:
+            return None, None
+        lo = info.start_ns + int(round(self.start_s * 1e9))
+        hi = info.start_ns + int(round(self.end_s * 1e9)) if self.end_s > 0 else None
+        if hi is not None and hi <= lo:
+            raise ValueError(f"end_s ({self.end_s}) must be after start_s ({self.start_s})")
+        return lo, hi
+
+    def start(self) -> None:
+        self.reader = MissionReader(self.path, run_codecs(self.registry))
+        self.ports = _select(self.reader, self.streams, self.rename)
+        info = self.reader.info()
+        if info.truncated:
+            self.log.warning("%s", f"{self.path}: truncated recording, replaying the "
+                                   f"{info.recovered_count} messages recovered")
+        self.replayed = 0
+        self.jumps: list[int] = []
+
+    def stop(self) -> None:
+        reader = getattr(self, "reader", None)
+        if reader is not None:
+            reader.close()
+
+    def _downstream(self) -> list[Component]:
+        seen: dict[str, Component] = {}
+        todo: list[Component] = [self]
+        while todo:
+            comp = todo.pop()
+            for out in comp.outputs.values():
+                for inp in out.connected_inputs():
+                    if inp.owner.name not in seen and inp.owner is not self:
+                        seen[inp.owner.name] = inp.owner
+                        todo.append(inp.owner)
+        return list(seen.values())
+
+    def generate(self) -> Iterator[tuple[int, str, Any]]:
+        r = self.reader
+        lo, hi = self._window(r)
+        if lo is None:
+            return
+        offset, first, last, n, k = 0, None, None, 0, 0
+        while self.loops == 0 or k < self.loops:
+            if k > 0:
+                if first is None or last is None:
+                    return  # nothing in the window: nothing to loop
+                gap = max(1, (last - first) // max(1, n - 1))
+                offset += last - first + gap
+                self.jumps.append(offset)
+                yield first + offset, TIME_JUMP, offset
+                for comp in self._downstream():
+                    comp.on_time_jump(offset)
+            for m in r.messages(self.ports, lo, hi):
+                if k == 0:
+                    first = m.t_ns if first is None else first
+                    last, n = m.t_ns, n + 1
+                self.replayed += 1
+                yield m.t_ns + offset, self.ports[m.topic], m.data
+            k += 1
+
+    def duration_hint_ns(self) -> int | None:
+        try:
+            with MissionReader(self.path, run_codecs()) as r:
+                lo, hi = self._window(r)
+                end = r.info().end_ns
+        except Exception:  # noqa: BLE001 - only a hint
+            return None
+        if lo is None or end is None:
+            return None
+        span = (min(hi, end) if hi is not None else end) - lo
+        return span * self.loops if self.loops else None
+
+    def summary(self) -> dict[str, Any]:
+        return {"path": self.path, "replayed": getattr(self, "replayed", 0),
+                "loops": len(getattr(self, "jumps", [])) + 1}

@@ -1,0 +1,84 @@
+"""Foxglove mirrors: decode the protobuf back with the foxglove classes and check values."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from foxglove_schemas_protobuf.Grid_pb2 import Grid as FxGrid
+from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
+from mcap.reader import make_reader
+
+from impala_flow import msgs
+from impala_flow.io import CodecRegistry, MissionWriter, foxglove_topic
+
+
+def _mirrors(path: Path) -> dict[str, tuple]:
+    out = {}
+    with open(path, "rb") as f:
+        for schema, channel, m in make_reader(f, validate_crcs=True).iter_messages():
+            if channel.topic.startswith("/foxglove/"):
+                out[channel.topic] = (schema, channel, m)
+    return out
+
+
+def test_mirrors_decode_with_foxglove_classes(tmp_path: Path,
+                                              registry: CodecRegistry) -> None:
+    path = tmp_path / "m.mcap"
+    t_ns = 12_345_678_901
+    grid = np.arange(12, dtype=">f4").reshape(3, 4)
+    with MissionWriter(path, codecs=registry) as w:
+        for topic, t in [("slam/pose", msgs.Pose2D), ("slam/traj", msgs.Trajectory2D),
+                         ("slam/map", msgs.Grid), ("radar/points", msgs.Points2D),
+                         ("odo/speed", msgs.Speed)]:
+            w.add_topic(topic, t)
+        w.write("slam/pose", t_ns, msgs.Pose2D(1.5, -2.0, math.pi / 2, frame="odom"))
+        w.write("slam/traj", t_ns, msgs.Trajectory2D(
+            np.array([0, 1]), np.array([[0.0, 0.0, 0.0], [1.0, 2.0, math.pi]])))
+        w.write("slam/map", t_ns, msgs.Grid(grid, 0.5, 10.0, 20.0, frame="map"))
+        w.write("radar/points", t_ns, msgs.Points2D(np.array([[1.0, 2.0], [3.0, 4.0]]),
+                                                    np.array([7.0, 8.0])))
+        w.write("odo/speed", t_ns, msgs.Speed(3.0))
+    mirrors = _mirrors(path)
+    assert set(mirrors) == {foxglove_topic(t) for t in
+                            ("slam/pose", "slam/traj", "slam/map", "radar/points")}
+
+    schema, channel, m = mirrors["/foxglove/slam/pose"]
+    assert schema.name == "foxglove.PoseInFrame" and schema.encoding == "protobuf"
+    assert channel.message_encoding == "protobuf"
+    assert channel.metadata["impala_flow.mirror_of"] == "slam/pose"
+    fds = FileDescriptorSet.FromString(schema.data)
+    assert "foxglove/PoseInFrame.proto" in [f.name for f in fds.file]
+    p = PoseInFrame.FromString(m.data)
+    assert p.frame_id == "odom" and p.timestamp.seconds == 12 and \
+        p.timestamp.nanos == 345_678_901
+    assert (p.pose.position.x, p.pose.position.y) == (1.5, -2.0)
+    q = p.pose.orientation
+    assert math.isclose(2 * math.atan2(q.z, q.w), math.pi / 2) and q.x == q.y == 0
+
+    tr = PosesInFrame.FromString(mirrors["/foxglove/slam/traj"][2].data)
+    assert len(tr.poses) == 2 and tr.poses[1].position.y == 2.0
+    assert math.isclose(tr.poses[1].orientation.z, 1.0)
+
+    g = FxGrid.FromString(mirrors["/foxglove/slam/map"][2].data)
+    assert g.column_count == 4 and g.cell_size.x == 0.5 and g.cell_stride == 4
+    assert g.row_stride == 16 and g.fields[0].name == "value"
+    assert (g.pose.position.x, g.pose.position.y) == (9.75, 19.75)  # corner of cell (0, 0)
+    np.testing.assert_array_equal(np.frombuffer(g.data, "<f4").reshape(3, 4), grid)
+
+    pc = PointCloud.FromString(mirrors["/foxglove/radar/points"][2].data)
+    assert [f.name for f in pc.fields] == ["x", "y", "z", "value"] and pc.point_stride == 16
+    pts = np.frombuffer(pc.data, "<f4").reshape(-1, 4)
+    np.testing.assert_array_equal(pts, [[1, 2, 0, 7], [3, 4, 0, 8]])
+
+
+def test_foxglove_can_be_disabled(tmp_path: Path, registry: CodecRegistry) -> None:
+    path = tmp_path / "m.mcap"
+    with MissionWriter(path, codecs=registry, foxglove=False) as w:
+        w.add_topic("slam/pose", msgs.Pose2D)
+        w.write("slam/pose", 0, msgs.Pose2D(0, 0, 0))
+    assert _mirrors(path) == {}
