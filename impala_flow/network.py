@@ -53,6 +53,7 @@ class Network:
     def connect(self, src: OutputPort, dst: InputPort, delayed: bool = False) -> Connection:
         c = Connection(src, dst, delayed)
         src._targets.append((dst, delayed))
+        dst.sources.append(src)
         dst.connected = True
         self.connections.append(c)
         return c

@@ -90,7 +90,7 @@ class InputPort:
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected", "rank",
+        "trigger_name", "connected", "rank", "sources",
     )
 
     def __init__(self, owner: Component, name: str, decl: Input) -> None:
@@ -112,6 +112,7 @@ class InputPort:
         self._cond: threading.Condition | None = None  # set by the real-time executor
         self.trigger_name = name if decl.sync is None else decl.sync
         self.connected = False
+        self.sources: list[OutputPort] = []  # the outputs feeding this input
         self.rank = 0  # graph order of the owner, set by the executor
 
     # --- producer side ------------------------------------------------------------

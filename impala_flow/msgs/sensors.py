@@ -24,7 +24,9 @@ class RadarConfig:
     ``bandwidth_hz`` (Delta F) repeated at ``modulation_hz`` (F_m). Spectra are sampled in
     beat frequency, ``bin_hz`` per bin. A power-only radar (Navtech) has
     ``doppler = False``, ``bandwidth_hz``/``modulation_hz`` of its own and ``bin_hz`` chosen
-    so that :meth:`range_of_bin_m` gives its range bins.
+    so that :meth:`range_of_bin_m` gives its range bins. ``window`` is the weighting
+    applied before the FFT: it sets the width of a target's peak (Hann resolves about
+    2 dR, ``rect`` dR with -13 dB sidelobes).
     """
 
     name: str
@@ -40,6 +42,7 @@ class RadarConfig:
     range_max_m: float
     doppler: bool = True
     height_m: float = 1.3
+    window: str = "hann"  # weighting before the FFT: "hann" (peaks ~4 bins wide) or "rect"
 
     @property
     def range_per_bin_m(self) -> float:

@@ -57,16 +57,22 @@ class Recorder(Component):
                                     compression=self.compression, chunk_size=self.chunk_size,
                                     metadata=meta, foxglove=self.foxglove)
         self.recorded: dict[str, int] = {}
+        for topic, port in self.inputs.items():  # declare typed streams now, even if they never emit
+            declared = {src.decl.type for src in port.sources}
+            if len(declared) == 1 and is_message(t := declared.pop()):
+                self._add_topic(topic, t)
+
+    def _add_topic(self, topic: str, t_data: type) -> None:
+        if is_message(t_data) and t_data not in self.codecs:
+            self.codecs.add_type(t_data, plugin=t_data.__module__.split(".")[0])
+        self.writer.add_topic(topic, t_data)
+        self.recorded[topic] = 0
 
     def process(self, t: int) -> None:
         topic = self.trigger
         s = self.inputs[topic].take_sample()
-        if topic not in self.recorded:
-            t_data = type(s.data)
-            if is_message(t_data) and t_data not in self.codecs:
-                self.codecs.add_type(t_data, plugin=t_data.__module__.split(".")[0])
-            self.writer.add_topic(topic, t_data)
-            self.recorded[topic] = 0
+        if topic not in self.recorded:  # an untyped output (object): the first sample's type
+            self._add_topic(topic, type(s.data))
         self.writer.write(topic, s.timestamp, s.data, s.seq)
         self.recorded[topic] += 1
 

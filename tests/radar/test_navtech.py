@@ -5,11 +5,12 @@ The data folder is test data, never copied into the repo: found next to the repo
 (the data root, or the sample folder itself). Tests skip cleanly when it is absent.
 """
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from impala_flow import msgs
 from impala_radar.navtech import (
     NAVTECH_CTS350X,
     OxfordRelativePoses,
@@ -20,9 +21,8 @@ from impala_radar.navtech import (
     scan_to_beams,
 )
 
-from impala_flow import msgs
-
 from ..datasets import oxford_sample_or_skip
+
 
 @pytest.fixture(scope="module")
 def sample() -> Path:
