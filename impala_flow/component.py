@@ -238,6 +238,10 @@ class Component:
                     params[k] = v
                 elif isinstance(v, Periodic):
                     timers[k] = v
+        for name in (*ins, *outs, *params, *timers):
+            if name in _RESERVED:
+                raise TypeError(f"{cls.__name__}.{name}: a port, parameter or timer may not be named "
+                                f"'{name}', which Component itself uses")
         cls.__inputs__, cls.__outputs__, cls.__params__, cls.__timers__ = ins, outs, params, timers
 
     @classmethod
@@ -328,3 +332,9 @@ class Source(Component):
     def duration_hint_ns(self) -> int | None:
         """Mission duration this source expects to produce, for progress bars."""
         return None
+
+
+#: attribute names of Component and Source that a declaration would silently shadow
+_RESERVED = frozenset(
+    n for klass in (Component, Source) for n in vars(klass) if not n.startswith("__")
+) | {"name", "inputs", "outputs", "sync_groups", "trigger", "log", "params", "registry"}

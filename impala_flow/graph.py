@@ -38,7 +38,7 @@ __all__ = [
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
 COMPONENT_KEYS = ("type", "params", "on_error", "description")
 CLOCK_KEYS = ("mode", "speed")
-RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxsize")
+RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxsize", "flush_period_s")
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 _CONN = re.compile(r"^\s*([^.\s]+)\.(\S+)\s*->\s*([^.\s]+)\.(\S+?)\s*(\[delay\])?\s*$")
 

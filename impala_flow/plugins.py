@@ -55,8 +55,12 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
             pm.register(plugin, name=ep.name)
             pm.versions[ep.name] = ep.dist.version if ep.dist else ""
     for name, obj in (extra or {}).items():
-        if name not in blocked:
-            pm.register(obj, name=name)
+        if name in blocked:
+            continue
+        if pm.get_plugin(name) is not None:
+            raise RegistrationError(f"two plugins are named '{name}': the installed "
+                                    f"{getattr(pm.get_plugin(name), '__name__', name)} and {obj!r}")
+        pm.register(obj, name=name)
     return pm
 
 

@@ -199,6 +199,8 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                 "compression": {"type": "string", "description": "chunk compression, e.g. zstd, lz4 or none"},
                 "foxglove": {"type": "boolean", "description": "also write Foxglove well-known schemas"},
                 "chunk_size": {"type": "integer", "minimum": 1024, "description": "bytes per MCAP chunk"},
+                "flush_period_s": {"type": "number", "minimum": 0,
+                                   "description": "close a chunk at least this often (wall s); 0: by size only"},
                 "maxsize": {"type": "integer", "minimum": 1,
                             "description": "samples queued per recorded stream before its producer blocks"},
             },

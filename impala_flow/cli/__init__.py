@@ -94,6 +94,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("impala-flow: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `impala-flow plugins | head`: the reader left, not an error
+        sys.stdout = None  # type: ignore[assignment]  # no flush of a closed pipe at exit
+        return EXIT_OK
     except Exception as e:
         if debug:
             raise

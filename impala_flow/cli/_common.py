@@ -111,7 +111,10 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
 def record_source(session: Session, source: Source, path: str, topics: dict[str, str],
                   compression: str = "zstd", progress: bool | None = None, quiet: bool = False) -> int:
     """Record ``source``'s ports to ``path`` (``topics``: port -> topic) through the
-    installed ``io.Recorder``: the one recording path every mission file goes through."""
+    installed ``io.Recorder``: the one recording path every mission file goes through.
+
+    Offline sources give the same samples every time, so chunks are cut by size only:
+    the same source gives the same bytes."""
     from ..build import RECORDER_TYPE
 
     rec_cls = session.registry.components.get(RECORDER_TYPE)
@@ -123,6 +126,7 @@ def record_source(session: Session, source: Source, path: str, topics: dict[str,
     graph = {"name": net.name, "components": {source.name: {"type": type(source).type_name or type(source).__name__,
                                                             "params": source.params}}}
     rec = net.add(rec_cls(name="record", path=str(path), topics=origin, compression=compression, graph=graph,
+                          flush_period_s=0.0,
                           plugins={n: p.version for n, p in session.registry.plugins.items()}))
     rec.registry = source.registry = session.registry
     for port, topic in topics.items():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -33,6 +34,9 @@ class Recorder(Component):
     foxglove = Param(bool, default=True, doc="also write poses, grids, points in Foxglove schemas")
     chunk_size = Param(int, default=1 << 20, ge=1024, doc="bytes per chunk before compression")
     maxsize = Param(int, default=4096, ge=1, doc="samples queued per input before blocking")
+    flush_period_s = Param(float, default=1.0, ge=0.0,
+                           doc="also close a chunk every this many wall seconds (crash safety of slow "
+                           "streams); 0: by size only, so the same samples give the same bytes")
     graph = Param(dict, default={}, doc="resolved graph stored in the metadata")
     plugins = Param(dict, default={}, doc="plugin name -> version, stored in the metadata")
 
@@ -53,7 +57,8 @@ class Recorder(Component):
             "impala_flow.streams": dict(self.topics),
         }
         self.codecs = run_codecs(self.registry)
-        self.writer = MissionWriter(self.path, codecs=self.codecs,
+        Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+        self.writer = MissionWriter(self.path, codecs=self.codecs, flush_period_s=self.flush_period_s or None,
                                     compression=self.compression, chunk_size=self.chunk_size,
                                     metadata=meta, foxglove=self.foxglove)
         self.recorded: dict[str, int] = {}

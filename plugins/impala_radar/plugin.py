@@ -13,6 +13,14 @@ def impala_flow_register(registry: Any) -> None:
 
     registry.add_component(Simulator)
     registry.add_component(OxfordScans)
+    from .frontend import EgoVelocity, FuzzyPairer, PanoramicBuilder, SpeckleFilter
+    from .frontend.report import FrontendReport
+
+    registry.add_component(FuzzyPairer)
+    registry.add_component(EgoVelocity)
+    registry.add_component(PanoramicBuilder)
+    registry.add_component(SpeckleFilter)
+    registry.add_component(FrontendReport)
 
 
 @hookimpl

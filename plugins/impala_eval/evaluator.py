@@ -1,0 +1,79 @@
+"""``eval.TrajectoryEvaluator``: an estimated trajectory against the truth, report at stop()."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from impala_flow.component import Component, Input, Param
+from impala_flow.msgs import Grid, Pose2D
+
+from .metrics import TrajectoryMetrics, trajectory_metrics
+from .report import format_metrics, write_report
+
+__all__ = ["TrajectoryEvaluator"]
+
+
+def _arrays(samples: list[tuple[int, Pose2D]]) -> tuple[np.ndarray, np.ndarray]:
+    t = np.array([s[0] for s in samples], np.int64)
+    xyt = np.array([[p.x_m, p.y_m, p.theta_rad] for _, p in samples], float).reshape(-1, 3)
+    order = np.argsort(t, kind="stable")
+    return t[order], xyt[order]
+
+
+class TrajectoryEvaluator(Component):
+    """Matches the estimate to the truth by timestamp (truth interpolated), aligns it (rigid
+    least squares or first pose), and at stop() writes ``report``: metrics.json, error vs
+    distance (seed Fig. 12), trajectory over the map (Fig. 10b), the map."""
+
+    estimate = Input(Pose2D, maxsize=1 << 20, doc="estimated poses (each one evaluated)")
+    truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
+    baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a second estimate (dead reckoning)")
+    map = Input(Grid, policy="sampling", required=False, doc="the radar map drawn under the trajectories")
+
+    report = Param(str, default="", doc="report folder ('' = metrics only, no files)")
+    align = Param(str, default="rigid", choices=("rigid", "first"), doc="alignment before the ATE")
+    segment_m = Param(float, default=100.0, gt=0, doc="segment length of the relative error")
+    title = Param(str, default="R-SLAM", doc="name of the estimate in the figures")
+
+    def start(self) -> None:
+        self.samples: dict[str, list[tuple[int, Pose2D]]] = {"estimate": [], "truth": [], "baseline": []}
+        self.figures: dict = {}
+        self.metrics: TrajectoryMetrics | None = None
+        self.baseline_metrics: TrajectoryMetrics | None = None
+
+    def process(self, t: int) -> None:
+        # truth is kept whole (not a bounded history): an estimate stamped at t_ref may
+        # arrive after later truth samples, and the match is done once, at stop()
+        s = self.inputs[self.trigger].take_sample()
+        self.samples[self.trigger].append((s.timestamp, s.data))
+
+    def evaluate(self) -> dict:
+        """Compute the metrics from what was received (also called by stop())."""
+        est, truth, base = (self.samples[k] for k in ("estimate", "truth", "baseline"))
+        if len(est) < 2 or len(truth) < 2:
+            self.figures = {"error": f"not enough poses (estimate {len(est)}, truth {len(truth)})"}
+            return self.figures
+        tt, txyt = _arrays(truth)
+        self.metrics = trajectory_metrics(*_arrays(est), tt, txyt, self.align, self.segment_m)
+        self.figures = self.metrics.figures()
+        if len(base) >= 2:
+            self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m)
+            self.figures.update(self.baseline_metrics.figures("baseline_"))
+        return self.figures
+
+    def stop(self) -> None:
+        figures = self.evaluate()
+        m = self.metrics
+        if m is None:
+            self.log.warning("no report: %s", figures.get("error"))
+            return
+        self.log.info("trajectory metrics\n%s", format_metrics(figures))
+        if self.report:
+            write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
+                         (m.rotation, m.translation_m), self.title)
+
+    def summary(self) -> dict:
+        keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct")
+        return {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}

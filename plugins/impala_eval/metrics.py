@@ -1,0 +1,149 @@
+"""Trajectory metrics (RADAR.md item 10, seed 1 §4.1.2 and Fig. 12): pure numpy functions.
+
+Estimated positions are matched to the truth by timestamp (truth interpolated linearly),
+aligned by a least-squares rigid transform in the plane (Kabsch/Umeyama without scale,
+by SVD) or on the first pose, then compared along the path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "interpolate_truth", "rigid_align_2d", "align_first", "apply_rigid", "path_length_m",
+    "distance_travelled_m", "relative_error_pct", "TrajectoryMetrics", "trajectory_metrics",
+]
+
+
+def interpolate_truth(t_ns: np.ndarray, truth_t_ns: np.ndarray, truth_xyt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Truth (x, y, theta) at ``t_ns`` (linear; theta along the shortest arc) and the mask of
+    times inside the truth's span (outside it nothing is extrapolated)."""
+    t = np.asarray(t_ns, np.int64)
+    tt = np.asarray(truth_t_ns, np.int64)
+    inside = (t >= tt[0]) & (t <= tt[-1])
+    rel = (t - tt[0]).astype(np.float64)  # relative ns: exact in float64 for missions < 104 days
+    rel_t = (tt - tt[0]).astype(np.float64)
+    x = np.interp(rel, rel_t, truth_xyt[:, 0])
+    y = np.interp(rel, rel_t, truth_xyt[:, 1])
+    th = np.interp(rel, rel_t, np.unwrap(truth_xyt[:, 2]))
+    return np.column_stack([x, y, (th + np.pi) % (2 * np.pi) - np.pi]), inside
+
+
+def rigid_align_2d(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R 2x2, t 2) minimising sum |R src_i + t - dst_i|^2 (Kabsch/Umeyama, no scale)."""
+    mu_s, mu_d = src_xy.mean(axis=0), dst_xy.mean(axis=0)
+    h = (dst_xy - mu_d).T @ (src_xy - mu_s)  # cross-covariance (up to 1/N)
+    u, _, vt = np.linalg.svd(h)
+    d = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])  # a rotation, never a reflection
+    r = u @ d @ vt
+    return r, mu_d - r @ mu_s
+
+
+def align_first(est_xyt: np.ndarray, truth_xyt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) moving the first estimated pose onto the first true pose."""
+    dth = truth_xyt[0, 2] - est_xyt[0, 2]
+    c, s = math.cos(dth), math.sin(dth)
+    r = np.array([[c, -s], [s, c]])
+    return r, truth_xyt[0, :2] - r @ est_xyt[0, :2]
+
+
+def apply_rigid(r: np.ndarray, t: np.ndarray, xyt: np.ndarray) -> np.ndarray:
+    """Poses moved by (R, t): positions rotated and shifted, headings rotated."""
+    xy = xyt[:, :2] @ r.T + t
+    th = xyt[:, 2] + math.atan2(r[1, 0], r[0, 0])
+    return np.column_stack([xy, (th + np.pi) % (2 * np.pi) - np.pi])
+
+
+def distance_travelled_m(xy: np.ndarray) -> np.ndarray:
+    """Cumulative distance along a polyline (0 at the first point)."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+
+
+def path_length_m(xy: np.ndarray) -> float:
+    return float(distance_travelled_m(xy)[-1]) if len(xy) > 1 else 0.0
+
+
+def relative_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray, segment_m: float = 100.0) -> float:
+    """Mean translation error over every ``segment_m`` stretch of the true path, in % of it
+    (KITTI-style relative pose error: both segment ends expressed in the segment start's frame).
+    NaN when the path is shorter than one segment."""
+    dist = distance_travelled_m(truth_xyt[:, :2])
+    errs = []
+    for i in range(len(dist)):
+        j = int(np.searchsorted(dist, dist[i] + segment_m))
+        if j >= len(dist):
+            break
+        errs.append(np.hypot(*(_rel(est_xyt[i], est_xyt[j]) - _rel(truth_xyt[i], truth_xyt[j]))) / (dist[j] - dist[i]))
+    return 100.0 * float(np.mean(errs)) if errs else float("nan")
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    d = b[:2] - a[:2]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+
+
+@dataclass
+class TrajectoryMetrics:
+    """Every figure with its unit in its name; ``error_m``/``distance_m`` along the path."""
+
+    t_ns: np.ndarray
+    est_aligned_xyt: np.ndarray
+    truth_xyt: np.ndarray
+    error_m: np.ndarray
+    distance_m: np.ndarray
+    ate_rmse_m: float
+    ate_mean_m: float
+    ate_max_m: float
+    heading_rmse_deg: float
+    rel_err_per_100m_pct: float
+    final_error_m: float
+    drift_pct: float
+    path_length_m: float
+    n_poses: int
+    align: str
+    rotation: np.ndarray  # (R, t) of the alignment: estimate frame -> truth frame
+    translation_m: np.ndarray
+
+    def figures(self, prefix: str = "") -> dict[str, float | int | str]:
+        keys = ("ate_rmse_m", "ate_mean_m", "ate_max_m", "heading_rmse_deg", "rel_err_per_100m_pct",
+                "final_error_m", "drift_pct", "path_length_m", "n_poses", "align")
+        out: dict[str, float | int | str] = {}
+        for k in keys:
+            v = getattr(self, k)
+            out[prefix + k] = v if isinstance(v, (int, str)) or not math.isnan(v) else None  # type: ignore[assignment]
+        return out
+
+
+def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.ndarray, truth_xyt: np.ndarray,
+                       align: str = "rigid", segment_m: float = 100.0) -> TrajectoryMetrics:
+    """All metrics of an estimated trajectory against the truth (``align``: rigid|first).
+
+    ATE after the chosen alignment; the final drift is always measured after aligning the
+    first pose (the start is known; a least-squares fit would hide the end's error), in %
+    of the true distance travelled.
+    """
+    t_ns = np.asarray(t_ns, np.int64)
+    truth, inside = interpolate_truth(t_ns, truth_t_ns, truth_xyt)
+    t_ns, est, truth = t_ns[inside], np.asarray(est_xyt, float)[inside], truth[inside]
+    if len(t_ns) < 2:
+        raise ValueError("fewer than two estimated poses fall inside the truth's time span")
+    r, t = rigid_align_2d(est[:, :2], truth[:, :2]) if align == "rigid" else align_first(est, truth)
+    aligned = apply_rigid(r, t, est)
+    err = np.hypot(*(aligned[:, :2] - truth[:, :2]).T)
+    dth = (aligned[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    dist = distance_travelled_m(truth[:, :2])
+    first = apply_rigid(*align_first(est, truth), est)
+    final = float(np.hypot(*(first[-1, :2] - truth[-1, :2])))
+    length = float(dist[-1])
+    return TrajectoryMetrics(
+        t_ns, aligned, truth, err, dist,
+        ate_rmse_m=float(np.sqrt(np.mean(err ** 2))), ate_mean_m=float(np.mean(err)), ate_max_m=float(np.max(err)),
+        heading_rmse_deg=float(np.degrees(np.sqrt(np.mean(dth ** 2)))),
+        rel_err_per_100m_pct=relative_error_pct(first, truth, segment_m),
+        final_error_m=final, drift_pct=100.0 * final / length if length > 0 else float("nan"),
+        path_length_m=length, n_poses=int(len(t_ns)), align=align, rotation=r, translation_m=t,
+    )

@@ -1,0 +1,138 @@
+"""Mission report: ``metrics.json`` and the figures of seed 1 §4.1.2 (Fig. 10b, Fig. 12).
+
+``write_report(folder, ...)`` writes::
+
+    metrics.json        every figure, units in the key names; the baseline's prefixed baseline_
+    error_vs_distance.png   position error along the path (Fig. 12), baseline beside
+    trajectory_map.png  estimated and true trajectories over the radar map (Fig. 10b)
+    map.png             the radar map alone
+
+``format_metrics`` / ``load_metrics`` let a command print a report's figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from impala_flow.msgs import Grid
+
+from .metrics import TrajectoryMetrics
+
+__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE"]
+
+METRICS_FILE = "metrics.json"
+_EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
+
+
+def _figure(w: float, h: float):  # type: ignore[no-untyped-def]
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(w, h), dpi=110, layout="constrained")
+
+
+def _map_image(grid: Grid) -> tuple[np.ndarray, list[float]]:
+    """Map intensities in dB above its noise floor, and the imshow extent (metres)."""
+    data = np.asarray(grid.data, np.float64)
+    seen = data[data > 0]
+    floor = float(np.percentile(seen, 5)) if seen.size else 1.0
+    img = np.where(data > 0, 10.0 * np.log10(np.maximum(data, floor) / floor), np.nan)
+    h, w = data.shape
+    c = grid.cell_m
+    return img, [grid.origin_x_m - c / 2, grid.origin_x_m + (w - 0.5) * c,
+                 grid.origin_y_m - c / 2, grid.origin_y_m + (h - 0.5) * c]
+
+
+def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = None) -> None:  # type: ignore[no-untyped-def]
+    import matplotlib.transforms as mtransforms
+
+    img, extent = _map_image(grid)
+    vmax = float(np.nanpercentile(img, 99.5)) if np.isfinite(img).any() else 1.0
+    im = ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=max(vmax, 1e-6),
+                   interpolation="antialiased")
+    if transform is not None:  # map frame -> truth frame (the alignment of the estimate)
+        r, t = transform
+        aff = mtransforms.Affine2D(np.array([[r[0, 0], r[0, 1], t[0]], [r[1, 0], r[1, 1], t[1]], [0, 0, 1]]))
+        im.set_transform(aff + ax.transData)
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="radar map intensity (dB above floor)")
+
+
+def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
+                 baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
+                 transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM") -> Path:
+    """Write the report folder (see the module doc); return its path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / METRICS_FILE).write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
+
+    fig = _figure(8.0, 3.6)
+    ax = fig.add_subplot()
+    if baseline is not None:
+        ax.plot(baseline.distance_m, baseline.error_m, color=_BASE, lw=1.2,
+                label=f"dead reckoning (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
+    ax.plot(est.distance_m, est.error_m, color=_EST, lw=1.4, label=f"{title} (ATE RMSE {est.ate_rmse_m:.2f} m)")
+    ax.set(xlabel="distance travelled (m)", ylabel="position error (m)",
+           title=f"Position error vs truth after {est.align} alignment")
+    ax.set_xlim(0, max(est.distance_m[-1], 1e-3))
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper left", frameon=False)
+    fig.savefig(folder / "error_vs_distance.png")
+
+    fig = _figure(7.5, 7.0)
+    ax = fig.add_subplot()
+    if radar_map is not None:
+        _show_map(ax, radar_map, transform)
+    ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
+    if baseline is not None:
+        ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
+                ls="--", label="dead reckoning")
+    ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2, label=title)
+    ax.plot(*est.truth_xyt[0, :2], "o", color="k", ms=5, label="start")
+    xy = np.vstack([est.truth_xyt[:, :2], est.est_aligned_xyt[:, :2]])
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = 0.15 * float(max(hi - lo)) + 5.0
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} trajectory over the radar map")
+    ax.legend(loc="best", framealpha=0.85)
+    fig.savefig(folder / "trajectory_map.png")
+
+    if radar_map is not None:
+        fig = _figure(7.5, 7.0)
+        ax = fig.add_subplot()
+        _show_map(ax, radar_map)
+        ax.set_aspect("equal")
+        ax.set(xlabel="x (m, map frame)", ylabel="y (m, map frame)",
+               title=f"Radar map ({radar_map.cell_m:.2f} m cells, eq. 6)")
+        fig.savefig(folder / "map.png")
+    return folder
+
+
+def format_metrics(figures: dict[str, Any]) -> str:
+    """Human-readable lines: estimate and baseline side by side."""
+    rows = [("ATE RMSE", "ate_rmse_m", "m"), ("ATE mean", "ate_mean_m", "m"), ("ATE max", "ate_max_m", "m"),
+            ("heading RMSE", "heading_rmse_deg", "deg"), ("rel. error / 100 m", "rel_err_per_100m_pct", "%"),
+            ("final error", "final_error_m", "m"), ("final drift", "drift_pct", "% of path"),
+            ("path length", "path_length_m", "m")]
+    has_base = any(k.startswith("baseline_") for k in figures)
+    head = f"{'':22s}{'estimate':>12s}" + (f"{'baseline':>12s}" if has_base else "")
+    lines = [head]
+    for label, key, unit in rows:
+        vals = [figures.get(key)] + ([figures.get("baseline_" + key)] if has_base else [])
+        cells = "".join(f"{'n/a' if v is None or (isinstance(v, float) and math.isnan(v)) else f'{v:.3f}':>12s}"
+                        for v in vals)
+        lines.append(f"{label:22s}{cells}  {unit}")
+    return "\n".join(lines)
+
+
+def load_metrics(folder: str | Path) -> dict[str, Any]:
+    return json.loads((Path(folder) / METRICS_FILE).read_text())

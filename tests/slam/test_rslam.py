@@ -1,0 +1,107 @@
+"""R-SLAM against synthetic panoramics of known poses, and dead reckoning against arcs."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from impala_flow.component import Output, Source
+from impala_flow.msgs import Grid, Pose2D, Speed, YawRate
+from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_slam import DeadReckoning, MatchParams, RSlam, RSlamConfig, RSlamCore, TileMap, match_to_map
+from impala_slam.synthetic import SyntheticWorld, synthetic_mission
+
+cv2.setNumThreads(1)
+
+
+@pytest.fixture(scope="module")
+def world():
+    rng = np.random.default_rng(7)
+    return SyntheticWorld.random(rng, (-90, 90), (-90, 90), 0.03, 3)
+
+
+@pytest.mark.parametrize("true_xyt", [(1.13, -0.42, 1.3), (-0.61, 0.87, -0.7), (0.05, 1.45, 0.2)])
+def test_matching_recovers_a_known_displacement(world, true_xyt):
+    rng = np.random.default_rng(3)
+    core = RSlamCore(RSlamConfig(range_max_m=50.0))
+    core.step(0, world.render((0.0, 0.0, 0.0), rng, radius_m=50.0))
+    true = (true_xyt[0], true_xyt[1], math.radians(true_xyt[2]))
+    pred = (true[0] - 0.3, true[1] + 0.25, true[2] - math.radians(0.6))  # odometry off by 39 cm, 0.6 deg
+    m = match_to_map(core.map, world.render(true, rng, radius_m=50.0), pred, MatchParams(match_range_m=50.0),
+                     core.alpha)
+    assert m.valid
+    assert math.hypot(m.x_m - true[0], m.y_m - true[1]) < 0.06
+    assert abs(math.degrees(m.theta_rad - true[2])) < 0.12
+    sx, sy, st = np.sqrt(np.diag(m.cov_xyt))
+    assert 0.0 < sx < 1.0 and 0.0 < sy < 1.0 and 0.0 < st < math.radians(2.0)
+
+
+def test_tiles_grow_with_the_area_mapped_and_eq6_averages():
+    tm = TileMap(0.5, tile_m=16.0)  # 32 x 32 cells per tile
+    ones = np.ones((10, 10), np.float32)
+    tm.add(0, 0, 2.0 * ones, ones > 0)
+    tm.add(0, 0, 4.0 * ones, ones > 0)
+    assert tm.n_tiles == 1
+    assert np.allclose(tm.crop(0, 0, 10, 10), 3.0)  # (2 + 4) / N, N = 2
+    tm.add(1024, -1024, ones, ones > 0)  # far away: one more tile, not the box between
+    assert tm.n_tiles == 2
+    assert tm.nbytes == 2 * 2 * 32 * 32 * 4
+    tm.add(30, 30, ones, ones > 0)  # straddles 4 tiles, one of them existing
+    assert tm.n_tiles == 5
+    assert np.allclose(tm.crop(1024, -1024, 10, 10), 1.0)
+    assert tm.crop(-50, -50, 5, 5).sum() == 0.0
+
+
+class _Mission(Source):
+    image = Output(Grid)
+    odometer = Output(Speed)
+    gyro = Output(YawRate)
+    truth = Output(Pose2D)
+
+    def generate(self):
+        return synthetic_mission(12, seed=2, radius_m=40.0, speed_scale_err=0.05, gyro_bias_radps=0.01)
+
+
+def test_rslam_component_beats_dead_reckoning_on_a_synthetic_mission():
+    slam = RSlam("slam", range_max_m=40.0, match_range_m=40.0, map_period_s=5.0)
+    sink = CollectingSink("sink", ports=["pose", "map", "truth", "dr"])
+    run_components(_Mission("m"), slam, DeadReckoning("dr", period_s=1.0), sink, connections=[
+        "m.image -> slam.image", "m.odometer -> dr.odometer", "m.gyro -> dr.gyro", "slam.pose -> sink.pose",
+        "slam.map -> sink.map", "m.truth -> sink.truth", "dr.pose -> sink.dr"])
+    poses, truth = sink.by_port["pose"], sink.by_port["truth"]
+    assert len(poses) == 12 and all(p.data.frame == "map" and p.data.cov_xyt.shape == (3, 3) for p in poses)
+    assert len(sink.by_port["map"]) >= 2 and sink.by_port["map"][-1].data.frame == "map"
+    truth_at = {s.timestamp: s.data for s in truth}
+    t0 = truth_at[poses[0].timestamp]  # map frame = odometry frame at the first turn: compare increments
+    def err(samples):
+        first = samples[0].data
+        out = []
+        for s in samples:
+            if s.timestamp not in truth_at or s.timestamp < poses[0].timestamp:
+                continue
+            tr = truth_at[s.timestamp]
+            d_true = np.hypot(tr.x_m - t0.x_m, tr.y_m - t0.y_m)
+            d_est = np.hypot(s.data.x_m - first.x_m, s.data.y_m - first.y_m)
+            out.append(abs(d_true - d_est))
+        return max(out)
+    assert err(poses) < 0.1
+    assert err([s for s in sink.by_port["dr"] if s.timestamp >= poses[0].timestamp]) > 0.3  # 5 % scale error
+
+
+def test_dead_reckoning_follows_an_exact_circle():
+    v, w = 2.0, 0.3  # 2 m/s on a circle of radius v / w
+    t = [int(k * 50_000_000) for k in range(201)]  # 10 s at 20 Hz
+    src = ScriptedSource("s", [(ti, "odo", Speed(v)) for ti in t] + [(ti, "gyro", YawRate(w)) for ti in t])
+    src.script.sort(key=lambda x: x[0])
+    sink = CollectingSink("sink")
+    run_components(src, DeadReckoning("dr", period_s=0.5, theta0_rad=0.2), sink,
+                   connections=["s.odo -> dr.odometer", "s.gyro -> dr.gyro", "dr.pose -> sink.x"])
+    for s in sink.samples[1:]:
+        ts = s.timestamp * 1e-9
+        th = 0.2 + w * ts
+        x = (math.sin(th) - math.sin(0.2)) * v / w
+        y = (math.cos(0.2) - math.cos(th)) * v / w
+        assert s.data.x_m == pytest.approx(x, abs=1e-9)
+        assert s.data.y_m == pytest.approx(y, abs=1e-9)
+        assert math.cos(s.data.theta_rad - th) == pytest.approx(1.0, abs=1e-12)

@@ -1,0 +1,137 @@
+"""Layering: the engine never imports a plugin, and a plugin never imports another one.
+
+Checked twice: by import-linter (the contract in pyproject.toml, on the import graph of
+the installed packages) and by a scan of the source files' syntax trees, which also sees
+imports inside functions and ``TYPE_CHECKING`` blocks and ``importlib.import_module``
+calls with a literal name.
+"""
+
+from __future__ import annotations
+
+import ast
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ENGINE = ROOT / "impala_flow"
+PLUGINS_DIR = ROOT / "plugins"
+EXAMPLE = ROOT / "tests" / "plugin_example" / "impala_flow_example"
+
+#: the built-in plugins of DESIGN.md, whether or not they have landed yet, plus whatever
+#: package sits in plugins/, plus the third-party example
+PLUGIN_PACKAGES = sorted(
+    {"impala_radar", "impala_io", "impala_slam", "impala_tracking", "impala_eval", "impala_flow_example"}
+    | {p.parent.name for p in PLUGINS_DIR.glob("*/__init__.py")}
+)
+
+
+def imported_modules(path: Path) -> list[tuple[int, str]]:
+    """(line, absolute module name) of every import in ``path``, relative ones resolved."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = path.relative_to(_root_of(path)).parts[:-1]  # ("impala_flow", "cli") for impala_flow/cli/x.py
+    found: list[tuple[int, str]] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = list(package[: len(package) - node.level + 1])
+                mod = ".".join([*base, node.module] if node.module else base)
+            else:
+                mod = node.module or ""
+            found.append((node.lineno, mod))  # its top-level package is all the checks need
+        elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant) \
+                and isinstance(node.args[0].value, str):
+            fn = node.func
+            name = fn.attr if isinstance(fn, ast.Attribute) else fn.id if isinstance(fn, ast.Name) else ""
+            if name in ("import_module", "__import__"):
+                found.append((node.lineno, node.args[0].value))
+    return found
+
+
+def _root_of(path: Path) -> Path:
+    """The folder on sys.path that ``path``'s top-level package sits in."""
+    p = path.parent
+    while (p / "__init__.py").exists():
+        p = p.parent
+    return p
+
+
+def _top(module: str) -> str:
+    return module.split(".")[0]
+
+
+def _python_files(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*.py") if "__pycache__" not in p.parts and "build" not in p.parts)
+
+
+def test_the_scan_sees_imports(tmp_path: Path) -> None:  # guards the scanner itself
+    pkg = tmp_path / "impala_flow" / "sub"
+    pkg.mkdir(parents=True)
+    (pkg.parent / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("from . import x\n")
+    (pkg / "x.py").write_text(
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n    import impala_io.recorder\n"
+        "def f():\n    from ..msgs import Pose2D\n    import importlib\n"
+        "    return importlib.import_module('impala_radar.sim')\n"
+    )
+    assert imported_modules(pkg / "__init__.py") == [(1, "impala_flow.sub")]
+    assert [(line, m) for line, m in imported_modules(pkg / "x.py") if _top(m) != "typing"] == [
+        (3, "impala_io.recorder"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.sim"),
+    ]
+    mods = {m for _, m in imported_modules(ENGINE / "plugins.py")}
+    assert {"pluggy", "impala_flow.hookspecs", "impala_flow.registry"} <= mods
+    mods = {m for _, m in imported_modules(ENGINE / "cli" / "__init__.py")}
+    assert "impala_flow.plugins" in mods  # a function-level, relative import
+
+
+def test_engine_imports_no_plugin() -> None:
+    files = _python_files(ENGINE)
+    assert len(files) > 10
+    bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
+           for f in files for line, mod in imported_modules(f) if _top(mod) in PLUGIN_PACKAGES]
+    assert not bad, "the engine must not import a plugin:\n" + "\n".join(bad)
+
+
+BUILTIN_PRESENT = [p for p in PLUGIN_PACKAGES if (PLUGINS_DIR / p).is_dir()]
+
+
+@pytest.mark.parametrize("package", [*BUILTIN_PRESENT, "impala_flow_example"])
+def test_plugin_imports_no_other_plugin(package: str) -> None:
+    folder = EXAMPLE if package == "impala_flow_example" else PLUGINS_DIR / package
+    bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
+           for f in _python_files(folder) for line, mod in imported_modules(f)
+           if _top(mod) in PLUGIN_PACKAGES and _top(mod) != package]
+    assert not bad, (f"{package} must not import another plugin (shared types go to impala_flow.msgs):\n"
+                     + "\n".join(bad))
+
+
+def test_example_plugin_uses_only_the_engine_and_the_standard_library() -> None:
+    third_party = {_top(mod) for f in _python_files(EXAMPLE) for _, mod in imported_modules(f)}
+    third_party -= set(sys.stdlib_module_names) | {"__future__", "impala_flow", "impala_flow_example"}
+    assert not third_party
+
+
+def test_import_linter_contract_covers_every_builtin_plugin() -> None:
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["importlinter"]
+    present = {p for p in BUILTIN_PRESENT if (PLUGINS_DIR / p / "__init__.py").exists()}  # importable packages
+    assert "impala_flow" in config["root_packages"]
+    assert present <= set(config["root_packages"])
+    forbidden = [c for c in config["contracts"] if c["type"] == "forbidden" and "impala_flow" in c["source_modules"]]
+    assert forbidden, "no import-linter contract keeps the engine from importing plugins"
+    assert present <= {m for c in forbidden for m in c["forbidden_modules"]}
+
+
+def test_lint_imports() -> None:
+    exe = Path(sys.executable).parent / "lint-imports"
+    cmd = [str(exe)] if exe.exists() else [shutil.which("lint-imports") or "lint-imports"]
+    r = subprocess.run([*cmd, "--no-cache"], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                       stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "0 broken" in r.stdout, r.stdout
