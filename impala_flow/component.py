@@ -13,8 +13,9 @@
 
 Lifecycle (RTMaps Birth/Core/Death): ``start()`` once before the first sample,
 ``process(t)`` for every trigger (``self.trigger`` names the input, sync group or
-periodic timer that fired), ``stop()`` once at the end, even when the run is interrupted
-or another component failed: that is where summaries and reports are written.
+periodic timer that fired), ``flush(t)`` once when the inputs are exhausted (it may still
+emit: a final map, a partial turn), ``stop()`` once at the end, even when the run is
+interrupted or another component failed: that is where summaries and reports are written.
 
 A :class:`Source` has no inputs; its :meth:`Source.generate` yields ``(t_ns, port,
 data)`` in non-decreasing time. Offline, the executor pulls the earliest pending sample
@@ -307,6 +308,11 @@ class Component:
 
     def process(self, t: int) -> None:
         """Called for each trigger; ``t`` is the triggering sample's time (int ns)."""
+
+    def flush(self, t: int) -> None:
+        """Called once when the inputs are exhausted (``t``: the last mission time), before
+        ``stop()``; it may emit what the component still holds (a final map, a partial turn).
+        Not called after an error or an interrupt."""
 
     def stop(self) -> None:
         """Called once at the end of the run, also after an error or an interrupt."""

@@ -13,7 +13,9 @@ Events are processed on one thread in the order of the key
   samples with equal timestamps in the order it yielded them.
 
 A sample reaches an input when its event is processed (never earlier: no input sees
-the future), and a reactive input triggers its component then. The same inputs give
+the future), and a reactive input triggers its component then. When every source is
+exhausted and every event processed, each component's ``flush(t)`` runs in graph order
+(the events it causes processed before the next one's), then every ``stop()``. The same inputs give
 the same order, hence bit-identical outputs, on any machine and at any replay speed:
 the clock only sleeps between events.
 """
@@ -81,6 +83,8 @@ class OfflineExecutor:
             for inp in c.inputs.values():
                 inp.rank = rank[c.name]
 
+        # a source's clock offset (its clock vs the mission clock) is applied on the way in
+        offsets = {c.name: int(getattr(c, "clock_offset_ns", 0) or 0) for c in order}
         started: list[Component] = []
         gens: dict[str, Iterator[tuple[int, str, Any]]] = {}
         last_src_t: dict[str, int] = {}
@@ -99,6 +103,7 @@ class OfflineExecutor:
             t, port, data = item
             if type(t) is not int:
                 t = int(t)
+            t += offsets[src.name]
             prev = last_src_t.get(src.name)
             if prev is not None and t < prev:
                 raise ComponentError(src.name, port, t, "generate", ValueError(
@@ -131,58 +136,73 @@ class OfflineExecutor:
             events = 0
             next_check = 256
             last_progress = wall0
-            while heap:
-                t, _, _, kind, a, b = pop(heap)
-                if kind == _TIMER:
-                    if live_events == 0:
-                        break
-                else:
-                    live_events -= 1
-                if cur_t is None or t > cur_t:
-                    if cur_t is None:
-                        summary.mission_start_ns = t
-                    cur_t = t
-                    self.clock.wait_until(t)
-                events += 1
-                if events >= next_check:
-                    next_check = events + 256
-                    if self.stop_event.is_set():
-                        summary.interrupted = True
-                        break
-                    now = time.perf_counter()
-                    if self.progress is not None and now - last_progress >= self.progress_interval_s:
-                        last_progress = now
-                        self.progress(cur_t, summary.mission_start_ns)
-                if kind == _DELIVER:
-                    if not a.push(b):
+
+            def drain() -> None:
+                nonlocal cur_t, live_events, events, next_check, last_progress
+                while heap:
+                    t, _, _, kind, a, b = pop(heap)
+                    if kind == _TIMER:
+                        if live_events == 0:
+                            return  # only timers left: the mission is over
+                    else:
+                        live_events -= 1
+                    if cur_t is None or t > cur_t:
+                        if cur_t is None:
+                            summary.mission_start_ns = t
+                        cur_t = t
+                        self.clock.wait_until(t)
+                    events += 1
+                    if events >= next_check:
+                        next_check = events + 256
+                        if self.stop_event.is_set():
+                            summary.interrupted = True
+                            return
+                        now = time.perf_counter()
+                        if self.progress is not None and now - last_progress >= self.progress_interval_s:
+                            last_progress = now
+                            self.progress(cur_t, summary.mission_start_ns)
+                    if kind == _DELIVER:
+                        if not a.push(b):
+                            continue
+                        comp = a.owner
+                        trig = a.trigger_name
+                        t = b.timestamp
+                    elif kind == _SRC:
+                        port, data = b
+                        try:
+                            a.outputs[port].emit(t, data)
+                        except KeyError:
+                            raise ComponentError(a.name, port, t, "generate", KeyError(
+                                f"yielded a sample for unknown output '{port}' "
+                                f"(outputs: {', '.join(a.outputs) or 'none'})")) from None
+                        pull(a)
                         continue
-                    comp = a.owner
-                    trig = a.trigger_name
-                    t = b.timestamp
-                elif kind == _SRC:
-                    port, data = b
+                    else:
+                        comp = a
+                        trig, p = b
+                        push(heap, (t + p, rank[comp.name], next(seq), _TIMER, comp, b))
+                    comp.trigger = trig
                     try:
-                        a.outputs[port].emit(t, data)
-                    except KeyError:
-                        raise ComponentError(a.name, port, t, "generate", KeyError(
-                            f"yielded a sample for unknown output '{port}' "
-                            f"(outputs: {', '.join(a.outputs) or 'none'})")) from None
-                    pull(a)
-                    continue
-                else:
-                    comp = a
-                    trig, p = b
-                    push(heap, (t + p, rank[comp.name], next(seq), _TIMER, comp, b))
-                comp.trigger = trig
-                try:
-                    comp.process(t)
-                except Exception as e:
-                    if comp.name in skip:
-                        skipped[comp.name] += 1
-                        comp.log.warning("skipped t=%d ns after %s: %s", t, type(e).__name__, e)
+                        comp.process(t)
+                    except Exception as e:
+                        if comp.name in skip:
+                            skipped[comp.name] += 1
+                            comp.log.warning("skipped t=%d ns after %s: %s", t, type(e).__name__, e)
+                            continue
+                        raise ComponentError(comp.name, trig, t, "process", e) from e
+                    counts[comp.name] += 1
+
+            drain()
+            if not summary.interrupted:  # end of the inputs: components may emit what they hold
+                for c in order:
+                    if type(c).flush is Component.flush:
                         continue
-                    raise ComponentError(comp.name, trig, t, "process", e) from e
-                counts[comp.name] += 1
+                    c.trigger = "flush"
+                    try:
+                        c.flush(cur_t if cur_t is not None else 0)
+                    except Exception as e:
+                        raise ComponentError(c.name, "flush", cur_t, "flush", e) from e
+                    drain()
             summary.events = events
         except ComponentError as e:
             error = e

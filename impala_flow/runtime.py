@@ -63,6 +63,8 @@ raises. Then, in this order:
    with a warning) and the timers stop;
 2. after an interrupt, the samples already delivered are still processed (up to
    ``drain_timeout_s``), so nothing acquired is lost; after an error, nothing new starts;
+   at a normal end (all sources exhausted), each component's ``flush(t)`` then runs, in
+   graph order, and what it emits is drained before the next one's;
 3. the mailboxes are closed: ``process`` calls in flight finish, samples still queued
    are discarded and any producer waiting for room is released. Samples never taken
    (queued at that point or delivered later) are counted as ``unconsumed`` (``unmatched``
@@ -463,7 +465,7 @@ class RealTimeExecutor:
         finally:
             if self.stop_event.is_set():
                 summary.interrupted = True
-            self._shutdown(sources, workers, timer_thread)
+            self._shutdown(sources, workers, timer_thread, [] if summary.interrupted else order)
             error = self._error
             summary.mission_end_ns = now() if summary.mission_start_ns is not None else None
             stop_error = self._stop_all(started)
@@ -511,7 +513,9 @@ class RealTimeExecutor:
                     self.progress(self.clock.now_ns(), start_ns)
 
     def _shutdown(self, sources: list[_SourceRun], workers: list[threading.Thread],
-                  timer_thread: threading.Thread | None) -> None:
+                  timer_thread: threading.Thread | None, flush: list[Component]) -> None:
+        """Stop sources and timers, drain, ``flush`` the given components (graph order,
+        each one's consequences drained before the next), close mailboxes, join workers."""
         self._stopping.set()
         self._timers_stop.set()
         deadline = time.monotonic() + self.stop_timeout_s
@@ -523,10 +527,22 @@ class RealTimeExecutor:
                                 r.src.name, self.stop_timeout_s)
         if timer_thread is not None:
             timer_thread.join(self.stop_timeout_s)
-        if self._error is None and workers:
-            drain_end = time.monotonic() + self.drain_timeout_s
-            while not self._quiescent() and time.monotonic() < drain_end and self._error is None:
-                time.sleep(0.002)
+        self._drain_all(workers)
+        for c in flush if self._error is None else []:
+            if type(c).flush is Component.flush:
+                continue
+            st = next((x for x in self._states if x.comp is c), None)
+            t = self.clock.now_ns()
+            try:
+                if st is not None:
+                    with st.lock:
+                        c.flush(t)
+                else:
+                    c.flush(t)
+            except Exception as e:
+                self._fail(ComponentError(c.name, "flush", t, "flush", e))
+                break
+            self._drain_all(workers)
         # close the mailboxes: in-flight calls finish, queued samples are counted as dropped
         self._halt()
         for _ in workers:
@@ -539,6 +555,12 @@ class RealTimeExecutor:
                     self._halt()  # release a producer that started waiting since
             if th.is_alive():
                 log.warning("%s still inside process() after %.1f s: abandoned", th.name, self.stop_timeout_s)
+
+    def _drain_all(self, workers: list[threading.Thread]) -> None:
+        if self._error is None and workers:
+            drain_end = time.monotonic() + self.drain_timeout_s
+            while not self._quiescent() and time.monotonic() < drain_end and self._error is None:
+                time.sleep(0.002)
 
     def _halt(self) -> None:
         for st in self._states:

@@ -166,6 +166,11 @@ class RSlam(Component):
         self.turns += 1
         self.pose.emit(sample.timestamp, Pose2D(x, y, th, cov, "map"))
 
+    def flush(self, t: int) -> None:
+        """The mission is over: emit the final map (whatever the map period)."""
+        if self.core.map is not None and not self.core.map.empty:
+            self.map.emit(t, self.core.map.to_grid())
+
     def summary(self) -> dict:
         core = getattr(self, "core", None)
         if core is None or not self.turns:

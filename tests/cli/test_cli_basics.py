@@ -1,4 +1,4 @@
-"""--help of every subcommand, --version, demo: in a subprocess and in this process."""
+"""--help of every subcommand, --version: in a subprocess and in this process."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from impala_flow import __version__
 
 from .conftest import Installed
 
-MINE = ("run", "validate", "plugins", "graph", "schema", "demo")
+MINE = ("run", "validate", "plugins", "graph", "schema")
 NO_EXAMPLE_YET: set[str] = set()
 
 
@@ -53,11 +53,3 @@ def test_unknown_subcommand_is_a_usage_error(installed: Installed) -> None:
     r = installed.run("frobnicate")
     assert r.returncode == 2
     assert "invalid choice: 'frobnicate'" in r.stderr
-
-
-def test_demo_placeholder(installed: Installed, capsys: pytest.CaptureFixture[str]) -> None:
-    r = installed.run("demo")
-    assert r.returncode == 0, r.stderr
-    assert r.stdout.startswith("no demo yet")
-    code, out, _ = installed.main("demo", capsys=capsys)
-    assert code == 0 and len(out.strip().splitlines()) == 1

@@ -78,3 +78,49 @@ def test_stop_event_interrupts_cleanly():
     summary = OfflineExecutor(net, stop_event=stop).run()
     assert summary.interrupted and 5000 <= len(sink.samples) < 6000
     assert "INTERRUPTED" in summary.format()
+
+
+def test_a_source_clock_offset_is_applied_on_the_way_in():
+    from impala_flow import Param
+
+    class Gps(Source):
+        out = Output(float)
+        clock_offset_ns = Param(int, default=0)
+
+        def generate(self):
+            yield from ((t, "out", float(t)) for t in (0, 100, 200))
+
+    net = Network()
+    net.add(Gps("gps", clock_offset_ns=-50))
+    sink = net.add(CollectingSink("sink"))
+    connect(net, "gps.out -> sink.x")
+    OfflineExecutor(net).run()
+    assert sink.times() == [-50, 50, 150] and sink.values() == [0.0, 100.0, 200.0]
+
+
+def test_flush_runs_once_at_the_end_and_may_emit():
+    from impala_flow import Component, Input
+
+    class Acc(Component):
+        x = Input(float)
+        total = Output(float)
+
+        def start(self):
+            self.sum = 0.0
+            self.flushed = []
+
+        def process(self, t):
+            self.sum += self.x.take()
+
+        def flush(self, t):
+            self.flushed.append(t)
+            self.total.emit(t, self.sum)
+
+    net = Network()
+    net.add(Counter("src", n=4, period_ns=10))
+    acc = net.add(Acc("acc"))
+    sink = net.add(CollectingSink("sink"))
+    connect(net, "src.out -> acc.x")
+    connect(net, "acc.total -> sink.x")
+    OfflineExecutor(net).run()
+    assert acc.flushed == [30] and sink.values() == [0.0 + 1.0 + 2.0 + 3.0] and sink.times() == [30]

@@ -381,7 +381,11 @@ def test_component_error_names_component_input_and_time_and_everyone_stops() -> 
     assert f"component 'boom', input 'x', sample t={t_bad} ns: ValueError: bad value 3" in str(err)
     assert summary.error == str(err)
     assert boom.stops == other.stops == s1.stops == s2.stops == 1
-    assert s1.values() == [0, 1, 2]
+    # after an error nothing new starts: what boom sent before failing was processed or is reported
+    got = s1.values()
+    assert got == [0, 1, 2][:len(got)]
+    st = summary.inputs["s1.x"]
+    assert st["received"] == 3 and st["unconsumed"] == 3 - len(got)
 
 
 def test_on_error_skip_counts_skips_and_continues() -> None:
@@ -658,3 +662,27 @@ def test_cli_realtime_run_of_the_example_plugin_stops_on_sigterm(tmp_path: Path)
     assert "INTERRUPTED" in err
     text = csv.read_text()
     assert text.startswith("t_ns,value\n") and text.endswith("\n")
+
+
+class Summing(Component):
+    x = Input(object)
+    total = Output(float)
+
+    def start(self) -> None:
+        self.sum, self.flushes = 0.0, 0
+
+    def process(self, t: int) -> None:
+        self.sum += float(self.x.take())
+
+    def flush(self, t: int) -> None:
+        self.flushes += 1
+        self.total.emit(t, self.sum)
+
+
+def test_flush_at_the_end_of_a_live_run_emits_and_is_drained_before_stop() -> None:
+    n = 50
+    src, acc, sink = LiveCounter("src", n=n, period_s=0.0002), Summing("acc"), StopCountingSink("sink")
+    net = make_net(src, acc, sink, connections=["src.out -> acc.x", "acc.total -> sink.x"])
+    summary = run_rt(net)
+    assert acc.flushes == 1 and sink.values() == [float(sum(range(n)))]
+    assert sink.stops == 1 and summary.drops() == {}
