@@ -130,7 +130,23 @@ class Param:
         return ", ".join(bits)
 
 
-class Input:
+class _PortDeclaration:
+    """A port declared on a component class; on an instance the attribute is the runtime
+    port (``self.image`` is ``self.inputs["image"]``)."""
+
+    _table = "inputs"
+    name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        return getattr(obj, self._table)[self.name]
+
+
+class Input(_PortDeclaration):
     """An input port declaration.
 
     ``type``: the message type accepted (``object`` accepts anything). ``policy``:
@@ -164,30 +180,17 @@ class Input:
         self.doc = doc
         self.name = ""
 
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
-        if obj is None:
-            return self
-        return obj.inputs[self.name]
 
 
-class Output:
+class Output(_PortDeclaration):
     """An output port declaration; ``type`` is the message type emitted."""
+
+    _table = "outputs"
 
     def __init__(self, type: type = object, *, doc: str = "") -> None:
         self.type = type
         self.doc = doc
         self.name = ""
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self.name = name
-
-    def __get__(self, obj: Any, owner: type | None = None) -> Any:
-        if obj is None:
-            return self
-        return obj.outputs[self.name]
 
 
 class Periodic:
@@ -286,6 +289,9 @@ class Component:
         ins, outs = self.declare_ports(values)
         self.inputs: dict[str, InputPort] = {k: InputPort(self, k, d) for k, d in ins.items()}
         self.outputs: dict[str, OutputPort] = {k: OutputPort(self, k, d) for k, d in outs.items()}
+        for k, port in (*self.inputs.items(), *self.outputs.items()):
+            if k.isidentifier() and k not in self.__dict__:
+                self.__dict__[k] = port  # plain attribute: no descriptor call on the hot path
         groups: dict[str, list[InputPort]] = {}
         for p in self.inputs.values():
             if p.decl.sync is not None:

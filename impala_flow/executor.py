@@ -36,7 +36,7 @@ from .ports import InputPort
 from .sample import Sample
 from .summary import ComponentError, RunSummary
 
-__all__ = ["OfflineExecutor", "run_offline"]
+__all__ = ["OfflineExecutor", "run_offline", "stop_components"]
 
 _SRC, _DELIVER, _TIMER = 0, 1, 2
 
@@ -210,7 +210,7 @@ class OfflineExecutor:
             summary.interrupted = True
         finally:
             summary.mission_end_ns = cur_t
-            stop_error = self._stop_all(started)
+            stop_error = stop_components(started)
             error = error or stop_error
             summary.wall_s = time.perf_counter() - wall0
             summary.processed = counts
@@ -223,17 +223,6 @@ class OfflineExecutor:
             error.summary = summary  # type: ignore[attr-defined]
             raise error
         return summary
-
-    def _stop_all(self, started: list[Component]) -> ComponentError | None:
-        first: ComponentError | None = None
-        for c in started:
-            try:
-                c.stop()
-            except Exception as e:
-                err = ComponentError(c.name, "", None, "stop", e)
-                err.__cause__ = e
-                first = first or err
-        return first
 
     def _collect(self, order: list[Component]) -> None:
         s = self.summary
@@ -252,6 +241,20 @@ class OfflineExecutor:
             extra = c.summary()
             if extra:
                 s.extra[c.name] = extra
+
+
+def stop_components(started: list[Component]) -> ComponentError | None:
+    """Call ``stop()`` of every started component, in order, even when some raise; return
+    the first failure (naming its component) or None. Both executors end a run with it."""
+    first: ComponentError | None = None
+    for c in started:
+        try:
+            c.stop()
+        except Exception as e:
+            err = ComponentError(c.name, "", None, "stop", e)
+            err.__cause__ = e
+            first = first or err
+    return first
 
 
 def run_offline(network: Network, speed: float | None = None, **kw: Any) -> RunSummary:

@@ -93,6 +93,7 @@ from typing import Any, Protocol
 
 from .clock import MissionClock
 from .component import Component, Source
+from .executor import stop_components
 from .network import Network
 from .ports import InputPort, SyncGroup
 from .sample import Sample
@@ -468,7 +469,7 @@ class RealTimeExecutor:
             self._shutdown(sources, workers, timer_thread, [] if summary.interrupted else order)
             error = self._error
             summary.mission_end_ns = now() if summary.mission_start_ns is not None else None
-            stop_error = self._stop_all(started)
+            stop_error = stop_components(started)
             error = error or stop_error
             summary.wall_s = time.perf_counter() - wall0
             summary.events = (sum(r.emitted for r in sources) + sum(st.delivered for st in self._states)
@@ -578,17 +579,6 @@ class RealTimeExecutor:
                             st.unconsumed[inp] = st.unconsumed.get(inp, 0) + n
                     if inp._cond is not None:
                         inp._cond.notify_all()
-
-    def _stop_all(self, started: list[Component]) -> ComponentError | None:
-        first: ComponentError | None = None
-        for c in started:
-            try:
-                c.stop()
-            except Exception as e:
-                err = ComponentError(c.name, "", None, "stop", e)
-                err.__cause__ = e
-                first = first or err
-        return first
 
     def _collect(self, order: list[Component], states: dict[str, _State], offsets: dict[str, int]) -> None:
         s = self.summary
