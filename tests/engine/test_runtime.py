@@ -6,7 +6,6 @@ drop counts are made deterministic by gating the consumers with events.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import signal
 import subprocess
@@ -627,9 +626,7 @@ def test_signal_stops_a_running_graph_cleanly(tmp_path: Path, sig: int, live: bo
     assert values == list(range(len(values))) and len(values) >= 20
 
 
-@pytest.mark.skipif(importlib.util.find_spec("impala_flow_example") is None,
-                    reason="tests/plugin_example is not installed")
-def test_cli_realtime_run_of_the_example_plugin_stops_on_sigterm(tmp_path: Path) -> None:
+def test_cli_realtime_run_of_the_example_plugin_stops_on_sigterm(tmp_path: Path, example_plugin: Any) -> None:
     csv = tmp_path / "out.csv"
     graph = tmp_path / "g.yaml"
     graph.write_text(textwrap.dedent(f"""
