@@ -73,11 +73,11 @@ class Progress:
 
             self.bar = tqdm(total=self.total_s, unit="s", desc=self.desc, file=sys.stderr, leave=True,
                             bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s mission "
-                            "[{elapsed} wall, {postfix}]" if self.total_s else
-                            "{desc}: {n:.1f} s mission [{elapsed} wall, {postfix}]")
+                            "[{elapsed} wall{postfix}]" if self.total_s else
+                            "{desc}: {n:.1f} s mission [{elapsed} wall{postfix}]")
         mission_s = (t_ns - start_ns) / 1e9
         wall = time.perf_counter() - self.wall0
-        self.bar.n = round(mission_s, 3)
+        self.bar.n = round(min(mission_s, self.total_s) if self.total_s else mission_s, 3)
         self.bar.set_postfix_str(f"x{mission_s / wall:.1f} real time" if wall > 0 else "", refresh=False)
         self.bar.refresh()
 
