@@ -77,7 +77,8 @@ class Progress:
                             "{desc}: {n:.1f} s mission [{elapsed} wall{postfix}]")
         mission_s = (t_ns - start_ns) / 1e9
         wall = time.perf_counter() - self.wall0
-        self.bar.n = round(min(mission_s, self.total_s) if self.total_s else mission_s, 3)
+        n = round(mission_s, 3)
+        self.bar.n = min(n, self.total_s) if self.total_s else n  # a hint can fall short by a bit
         self.bar.set_postfix_str(f"x{mission_s / wall:.1f} real time" if wall > 0 else "", refresh=False)
         self.bar.refresh()
 
