@@ -14,6 +14,7 @@ ATE <= 1.0 m, drift <= 0.5 %.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import sys
@@ -61,7 +62,7 @@ name: rslam-bench-synthetic
 clock: {mode: replay, speed: max}
 components:
   mission: {type: bench.SyntheticMission, params: {turns: %(turns)s}}
-  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6, range_max_m: 60.0}}
+  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6, range_max_m: 60.0, db_floor_quantile: 0.5}}
   deadreckoning: {type: slam.DeadReckoning, params: {period_s: 0.5}}
   eval: {type: eval.TrajectoryEvaluator, params: {report: "%(report)s"}}
 connections:
@@ -103,13 +104,15 @@ def _timed(comp: Component, acc: dict[str, float]) -> None:
 
 
 def run_mission(turns: int, synthetic: bool, report: str) -> dict:
-    import impala_eval.plugin
-    import impala_slam.plugin
+    from importlib.metadata import entry_points
 
-    plugins = {"slam": impala_slam.plugin, "eval": impala_eval.plugin}
     from impala_flow.testing import plugin_of
 
-    plugins["bench"] = plugin_of(SyntheticMission)
+    plugins = {"bench": plugin_of(SyntheticMission)}
+    installed = {ep.name for ep in entry_points(group="impala_flow")}
+    for name in ("slam", "eval"):  # from the source tree when the plugins are not installed
+        if name not in installed:
+            plugins[name] = importlib.import_module(f"impala_{name}.plugin")
     session = Session(extra_plugins=plugins)
     if not synthetic and "radar.Simulator" not in session.registry.components:
         synthetic = True

@@ -36,6 +36,8 @@ class TrajectoryEvaluator(Component):
     align = Param(str, default="rigid", choices=("rigid", "first"), doc="alignment before the ATE")
     segment_m = Param(float, default=100.0, gt=0, doc="segment length of the relative error")
     title = Param(str, default="R-SLAM", doc="name of the estimate in the figures")
+    map_scale = Param(str, default="db", choices=("db", "power"),
+                      doc="unit of the map's values: dB (slam.RSlam's map) or linear power")
 
     def start(self) -> None:
         self.samples: dict[str, list[tuple[int, Pose2D]]] = {"estimate": [], "truth": [], "baseline": []}
@@ -72,7 +74,7 @@ class TrajectoryEvaluator(Component):
         self.log.info("trajectory metrics\n%s", format_metrics(figures))
         if self.report:
             write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
-                         (m.rotation, m.translation_m), self.title)
+                         (m.rotation, m.translation_m), self.title, self.map_scale)
 
     def summary(self) -> dict:
         keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct")

@@ -38,58 +38,74 @@ def _figure(w: float, h: float):  # type: ignore[no-untyped-def]
     return Figure(figsize=(w, h), dpi=110, layout="constrained")
 
 
-def _map_image(grid: Grid) -> tuple[np.ndarray, list[float]]:
-    """Map intensities in dB above its noise floor, and the imshow extent (metres)."""
+def _map_image(grid: Grid, scale: str = "db") -> tuple[np.ndarray, list[float]]:
+    """Map intensities in dB (``scale = "db"``: the values are dB already, R-SLAM's map;
+    ``"power"``: 10 log10 above the 5th percentile), NaN where unmapped; imshow extent (m)."""
     data = np.asarray(grid.data, np.float64)
-    seen = data[data > 0]
-    floor = float(np.percentile(seen, 5)) if seen.size else 1.0
-    img = np.where(data > 0, 10.0 * np.log10(np.maximum(data, floor) / floor), np.nan)
+    if scale == "db":
+        img = np.where(data > 0, data, np.nan)
+    else:
+        seen = data[data > 0]
+        floor = float(np.percentile(seen, 5)) if seen.size else 1.0
+        img = np.where(data > 0, 10.0 * np.log10(np.maximum(data, floor) / floor), np.nan)
     h, w = data.shape
     c = grid.cell_m
     return img, [grid.origin_x_m - c / 2, grid.origin_x_m + (w - 0.5) * c,
                  grid.origin_y_m - c / 2, grid.origin_y_m + (h - 0.5) * c]
 
 
-def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = None) -> None:  # type: ignore[no-untyped-def]
+def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = None,  # type: ignore[no-untyped-def]
+              scale: str = "db") -> None:
     import matplotlib.transforms as mtransforms
 
-    img, extent = _map_image(grid)
-    vmax = float(np.nanpercentile(img, 99.5)) if np.isfinite(img).any() else 1.0
-    im = ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=max(vmax, 1e-6),
-                   interpolation="antialiased")
+    img, extent = _map_image(grid, scale)
+    finite = np.isfinite(img)
+    vmin, vmax = (np.nanpercentile(img, [2.0, 99.5]) if finite.any() else (0.0, 1.0))
+    im = ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=float(vmin),
+                   vmax=max(float(vmax), float(vmin) + 1e-6), interpolation="antialiased")
     if transform is not None:  # map frame -> truth frame (the alignment of the estimate)
         r, t = transform
         aff = mtransforms.Affine2D(np.array([[r[0, 0], r[0, 1], t[0]], [r[1, 0], r[1, 1], t[1]], [0, 0, 1]]))
         im.set_transform(aff + ax.transData)
-    ax.figure.colorbar(im, ax=ax, shrink=0.8, label="radar map intensity (dB above floor)")
+    label = "radar map amplitude (dB)" if scale == "db" else "radar map intensity (dB above floor)"
+    ax.figure.colorbar(im, ax=ax, shrink=0.8, label=label)
 
 
 def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
                  baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
-                 transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM") -> Path:
-    """Write the report folder (see the module doc); return its path."""
+                 transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM",
+                 map_scale: str = "db") -> Path:
+    """Write the report folder (see the module doc); return its path. ``map_scale``: the
+    map's values are dB (R-SLAM's map) or linear power."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / METRICS_FILE).write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
 
-    fig = _figure(8.0, 3.6)
-    ax = fig.add_subplot()
-    if baseline is not None:
-        ax.plot(baseline.distance_m, baseline.error_m, color=_BASE, lw=1.2,
-                label=f"dead reckoning (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
-    ax.plot(est.distance_m, est.error_m, color=_EST, lw=1.4, label=f"{title} (ATE RMSE {est.ate_rmse_m:.2f} m)")
-    ax.set(xlabel="distance travelled (m)", ylabel="position error (m)",
-           title=f"Position error vs truth after {est.align} alignment")
-    ax.set_xlim(0, max(est.distance_m[-1], 1e-3))
-    ax.set_ylim(bottom=0)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper left", frameon=False)
+    # Fig. 12: the estimate's error on its own scale; below it, beside the baseline's when
+    # that one is much larger (dead reckoning drifts tens of metres where R-SLAM stays cm)
+    apart = baseline is not None and float(np.max(baseline.error_m)) > 3.0 * max(float(np.max(est.error_m)), 1e-6)
+    fig = _figure(8.0, 6.4 if apart else 3.6)
+    axes = fig.subplots(2, 1, sharex=True) if apart else [fig.add_subplot()]
+    for i, ax in enumerate(axes):
+        if baseline is not None and (i == 1 or not apart):
+            ax.plot(baseline.distance_m, baseline.error_m, color=_BASE, lw=1.2,
+                    label=f"dead reckoning (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
+        ax.plot(est.distance_m, est.error_m, color=_EST, lw=1.4,
+                label=f"{title} (ATE RMSE {est.ate_rmse_m:.3f} m, final drift {est.drift_pct:.2f} %)")
+        ax.set(ylabel="position error (m)")
+        ax.set_xlim(0, max(est.distance_m[-1], 1e-3))
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", frameon=False)
+    axes[0].set_title(f"Position error vs truth after {est.align} alignment"
+                      + (f" ({title} alone, then beside the baseline)" if apart else ""))
+    axes[-1].set_xlabel("distance travelled (m)")
     fig.savefig(folder / "error_vs_distance.png")
 
     fig = _figure(7.5, 7.0)
     ax = fig.add_subplot()
     if radar_map is not None:
-        _show_map(ax, radar_map, transform)
+        _show_map(ax, radar_map, transform, map_scale)
     ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
     if baseline is not None:
         ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
@@ -99,8 +115,11 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     xy = np.vstack([est.truth_xyt[:, :2], est.est_aligned_xyt[:, :2]])
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     pad = 0.15 * float(max(hi - lo)) + 5.0
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    half = 0.5 * (hi - lo) + pad
+    half = np.maximum(half, 0.6 * half.max())  # a straight path keeps some map either side
+    mid = 0.5 * (hi + lo)
+    ax.set_xlim(mid[0] - half[0], mid[0] + half[0])
+    ax.set_ylim(mid[1] - half[1], mid[1] + half[1])
     ax.set_aspect("equal")
     ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} trajectory over the radar map")
     ax.legend(loc="best", framealpha=0.85)
@@ -109,7 +128,7 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     if radar_map is not None:
         fig = _figure(7.5, 7.0)
         ax = fig.add_subplot()
-        _show_map(ax, radar_map)
+        _show_map(ax, radar_map, scale=map_scale)
         ax.set_aspect("equal")
         ax.set(xlabel="x (m, map frame)", ylabel="y (m, map frame)",
                title=f"Radar map ({radar_map.cell_m:.2f} m cells, eq. 6)")

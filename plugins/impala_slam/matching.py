@@ -17,6 +17,12 @@ parabolas along x and y. The standard deviations come from the peak's 3 dB (half
 width (seed 1, after eq. 5): a Gaussian of the same curvature and height ``h`` above the
 background has ``sigma^2 = h / |C''|``, i.e. the covariance ``h (-H)^-1`` with ``H`` the
 Hessian of the correlation at the peak.
+
+Both images are lightly smoothed (``smooth_m``, at least 0.6 cell) and reduced to their
+local contrast over ``contrast_m`` (3 m: it removes the R^-4 trend and the level of each
+kind of clutter, keeping bushes, trees and walls against the grass). They are expected on a
+compressed scale (R-SLAM passes A in dB, see :mod:`impala_slam.rslam`); the template is not
+weighted by alpha(d) by default since the map holds the weighted mean of A (eq. 6).
 """
 
 from __future__ import annotations
@@ -46,6 +52,8 @@ class MatchParams:
     match_range_m: float = 60.0  # radius of the panoramic used for matching
     contrast_m: float = 3.0  # local-mean window removed before correlating
     min_score: float = 0.05  # normalised correlation below this: no match
+    smooth_m: float = 0.0  # Gaussian sigma (m) before correlating; at least 0.6 cell of each level
+    weight_template: bool = False  # template times alpha(d) (the map's weighting)
 
 
 @dataclass
@@ -85,23 +93,24 @@ def downsample_grid(grid: Grid, cell_m: float) -> Grid:
     return Grid(small, grid.cell_m / s, grid.origin_x_m + shift_m, grid.origin_y_m + shift_m, grid.frame)
 
 
-def _prepared(grid: Grid, cell_m: float, contrast_cells: int) -> Grid:
+def _prepared(grid: Grid, cell_m: float, contrast_cells: int, smooth_cells: float = _SMOOTH_CELLS) -> Grid:
     """The panoramic on ``cell_m`` cells, lightly smoothed (so that rotating it by bilinear
     interpolation blurs every angle alike) and reduced to its local contrast, once per level."""
     g = downsample_grid(grid, cell_m)
     data = np.nan_to_num(np.asarray(g.data, np.float32))
     support = (data > 0).astype(np.float32)
-    data = contrast(cv2.GaussianBlur(data, (0, 0), _SMOOTH_CELLS), contrast_cells, support)
+    data = contrast(cv2.GaussianBlur(data, (0, 0), smooth_cells), contrast_cells, support)
     return Grid(data, g.cell_m, g.origin_x_m, g.origin_y_m, g.frame)
 
 
-def _map_window(tilemap: TileMap, ix0: int, iy0: int, n: int, f: int, contrast_cells: int) -> np.ndarray:
+def _map_window(tilemap: TileMap, ix0: int, iy0: int, n: int, f: int, contrast_cells: int,
+                smooth_cells: float = _SMOOTH_CELLS) -> np.ndarray:
     """Map cells (f ix0 ..., f iy0 ...) averaged by f x f into n x n, smoothed, contrast."""
     m, sup = tilemap.crop_with_support(f * ix0, f * iy0, f * n, f * n)
     if f > 1:
         m = cv2.resize(m, (n, n), interpolation=cv2.INTER_AREA)
         sup = (cv2.resize(sup, (n, n), interpolation=cv2.INTER_AREA) > 0.999).astype(np.float32)
-    return contrast(cv2.GaussianBlur(m, (0, 0), _SMOOTH_CELLS), contrast_cells, sup)
+    return contrast(cv2.GaussianBlur(m, (0, 0), smooth_cells), contrast_cells, sup)
 
 
 def _template(prepared: Grid, theta_rad: float, disk: np.ndarray) -> np.ndarray:
@@ -139,6 +148,8 @@ def _correlate(crop: np.ndarray, tmpl: np.ndarray) -> np.ndarray:
 def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, float], p: MatchParams,
                  weight: Callable[[np.ndarray], np.ndarray] | None = None) -> MatchResult:
     """Pose of the panoramic ``grid`` in the map by 3-D correlation around ``pred_xyt`` (eq. 5)."""
+    if not p.weight_template:
+        weight = None
     cell = tilemap.cell_m
     f = max(1, int(round(p.match_cell_m / cell)))
     cc = f * cell
@@ -152,8 +163,9 @@ def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, flo
     iy0 = int(round((y_p - a) / cc)) - h_c - s_c
     n_c = 2 * (h_c + s_c) + 1
     k_c = int(round(p.contrast_m / cc))
-    crop_c = _map_window(tilemap, ix0, iy0, n_c, f, k_c)
-    coarse = _prepared(grid, cc, k_c)
+    sm_c = max(_SMOOTH_CELLS, p.smooth_m / cc)
+    crop_c = _map_window(tilemap, ix0, iy0, n_c, f, k_c, sm_c)
+    coarse = _prepared(grid, cc, k_c, sm_c)
     disk_c = _disk(h_c, cc, weight)
     n_rot = int(round(p.rot_span_deg / p.rot_step_deg))
     step = math.radians(p.rot_step_deg)
@@ -175,8 +187,9 @@ def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, flo
     fy0 = int(round(y_c / cell)) - h_f - s_f
     n_f = 2 * (h_f + s_f) + 1
     k_f = int(round(p.contrast_m / cell))
-    crop = _map_window(tilemap, fx0, fy0, n_f, 1, k_f)
-    fine = _prepared(grid, cell, k_f)
+    sm_f = max(_SMOOTH_CELLS, p.smooth_m / cell)
+    crop = _map_window(tilemap, fx0, fy0, n_f, 1, k_f, sm_f)
+    fine = _prepared(grid, cell, k_f, sm_f)
     disk_f = _disk(h_f, cell, weight)
     delta = step / 2.0
     offsets = delta * np.arange(-2, 3)

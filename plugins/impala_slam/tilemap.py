@@ -4,8 +4,9 @@ Map cell ``(ix, iy)`` (integers, any sign) is centred at ``(ix * cell_m, iy * ce
 the map frame. Tiles of ``tile_cells`` x ``tile_cells`` cells live in a dict keyed by tile
 index, so memory grows with the area mapped, never with the mission's bounding box.
 
-Each tile keeps two float32 layers: the sum of ``alpha(d_i) A_i`` and the number ``N`` of
-panoramics that covered each cell; the map value is their ratio (eq. 6).
+Each tile keeps two float32 layers: the sum of ``alpha(d_i) A_i`` and its normaliser, the
+sum of ``alpha(d_i)`` (R-SLAM's default: the running weighted mean) or the number ``N`` of
+panoramics that covered each cell (eq. 6 to the letter); the map value is their ratio.
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ class TileMap:
         self.cell_m = float(cell_m)
         self.tile_cells = max(8, int(round(tile_m / cell_m)))
         self.weighted_sum: dict[tuple[int, int], np.ndarray] = {}  # sum_i alpha(d_i) A_i
-        self.count: dict[tuple[int, int], np.ndarray] = {}  # N: panoramics covering the cell
+        self.count: dict[tuple[int, int], np.ndarray] = {}  # normaliser: sum of alpha, or N
 
     # --- geometry ------------------------------------------------------------------
     def index_of(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -91,7 +92,8 @@ class TileMap:
     # --- eq. (6) -----------------------------------------------------------------------
     def add(self, ix0: int, iy0: int, weighted_amplitude: np.ndarray, covered: np.ndarray) -> None:
         """Accumulate alpha(d) A over a window starting at map cell (ix0, iy0); ``covered``
-        marks the cells this panoramic saw (they count in N)."""
+        is what the panoramic adds to each cell's normaliser: a bool mask (N, the number of
+        panoramics that saw the cell) or the weights alpha(d) themselves (sum of alpha)."""
         ny, nx = weighted_amplitude.shape
         n = self.tile_cells
         for key, win, tile in self._tiles(ix0, iy0, nx, ny):
@@ -101,11 +103,11 @@ class TileMap:
             if key not in self.count:
                 self.weighted_sum[key] = np.zeros((n, n), np.float32)
                 self.count[key] = np.zeros((n, n), np.float32)
-            self.weighted_sum[key][tile] += np.where(cov, weighted_amplitude[win], 0.0)
+            self.weighted_sum[key][tile] += np.where(cov > 0, weighted_amplitude[win], 0.0)
             self.count[key][tile] += cov
 
     def crop(self, ix0: int, iy0: int, nx: int, ny: int) -> np.ndarray:
-        """M(x, y) = 1/N sum_i alpha(d_i) A_i(x, y) over a window (eq. 6); 0 where unmapped."""
+        """M(x, y) = sum_i alpha(d_i) A_i(x, y) / normaliser over a window (eq. 6); 0 where unmapped."""
         return self.crop_with_support(ix0, iy0, nx, ny)[0]
 
     def crop_with_support(self, ix0: int, iy0: int, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:

@@ -85,3 +85,18 @@ def test_evaluator_writes_its_report(tmp_path):
     assert figures["baseline_ate_rmse_m"] > 0.1 and figures["baseline_drift_pct"] > 0.5
     for png in ("error_vs_distance.png", "trajectory_map.png", "map.png"):
         assert (tmp_path / "rep" / png).stat().st_size > 10_000
+
+
+def test_report_shows_a_db_map_as_is_and_a_power_map_in_db():
+    """slam.RSlam's map is in dB already (A = 10 log10 P): the report must not take its log
+    again (that squeezed a 40 dB map into 0-6.6 'dB'); a linear power map is shown in dB."""
+    from impala_eval.report import _map_image
+
+    db = np.array([[0.0, 10.0], [25.0, 40.0]], np.float32)
+    img, extent = _map_image(Grid(db, 0.5, 0.0, 0.0, "map"), "db")
+    assert np.isnan(img[0, 0]) and np.allclose(img[1], [25.0, 40.0]) and img[0, 1] == 10.0
+    assert extent == [-0.25, 0.75, -0.25, 0.75]
+    power = 10.0 ** (db / 10.0)
+    img, _ = _map_image(Grid(power, 0.5, 0.0, 0.0, "map"), "power")
+    floor = np.percentile(power, 5)  # its 0 dB: the 5th percentile of the mapped cells
+    assert np.nanmax(img) == pytest.approx(10.0 * np.log10(power.max() / floor), rel=1e-5)

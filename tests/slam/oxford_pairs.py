@@ -33,6 +33,7 @@ def oxford_config(cell_m: float = 0.1) -> RSlamConfig:
         match=MatchParams(search_m=3.0, rot_span_deg=2.0, rot_step_deg=0.25, match_cell_m=4 * cell_m,
                           match_range_m=35.0, contrast_m=2.0, min_score=0.02),
         map_cell_m=cell_m, aperture_deg=1.8, resolution_m=0.5, range_min_m=2.5, range_max_m=60.0,
+        intensity="linear",  # the Navtech PNGs already hold power in dB (0.5 dB steps)
     )
 
 

@@ -24,12 +24,12 @@ def world():
 @pytest.mark.parametrize("true_xyt", [(1.13, -0.42, 1.3), (-0.61, 0.87, -0.7), (0.05, 1.45, 0.2)])
 def test_matching_recovers_a_known_displacement(world, true_xyt):
     rng = np.random.default_rng(3)
-    core = RSlamCore(RSlamConfig(range_max_m=50.0))
+    core = RSlamCore(RSlamConfig(range_max_m=50.0, db_floor_quantile=0.5))  # points over noise: 0 dB = median
     core.step(0, world.render((0.0, 0.0, 0.0), rng, radius_m=50.0))
     true = (true_xyt[0], true_xyt[1], math.radians(true_xyt[2]))
     pred = (true[0] - 0.3, true[1] + 0.25, true[2] - math.radians(0.6))  # odometry off by 39 cm, 0.6 deg
-    m = match_to_map(core.map, world.render(true, rng, radius_m=50.0), pred, MatchParams(match_range_m=50.0),
-                     core.alpha)
+    m = match_to_map(core.map, core.amplitude(world.render(true, rng, radius_m=50.0)), pred,
+                     MatchParams(match_range_m=50.0), core.alpha)
     assert m.valid
     assert math.hypot(m.x_m - true[0], m.y_m - true[1]) < 0.06
     assert abs(math.degrees(m.theta_rad - true[2])) < 0.12
@@ -64,7 +64,7 @@ class _Mission(Source):
 
 
 def test_rslam_component_beats_dead_reckoning_on_a_synthetic_mission():
-    slam = RSlam("slam", range_max_m=40.0, match_range_m=40.0, map_period_s=5.0)
+    slam = RSlam("slam", range_max_m=40.0, match_range_m=40.0, map_period_s=5.0, db_floor_quantile=0.5)
     sink = CollectingSink("sink", ports=["pose", "map", "truth", "dr"])
     run_components(_Mission("m"), slam, DeadReckoning("dr", period_s=1.0), sink, connections=[
         "m.image -> slam.image", "m.odometer -> dr.odometer", "m.gyro -> dr.gyro", "slam.pose -> sink.pose",

@@ -125,11 +125,17 @@ def _extended_polar(power: np.ndarray, az0: float, daz: float, full_turn: bool) 
 
 
 def scan_to_grid(power: np.ndarray, azimuth_rad, beam_poses_xyt, range_per_bin_m: float,
-                 cell_m: float, range_max_m: float) -> tuple[np.ndarray, tuple[float, float]]:
+                 cell_m: float, range_max_m: float,
+                 height_m: float = 0.0) -> tuple[np.ndarray, tuple[float, float]]:
     """Cartesian grid (float32, row = y, column = x, radar at the centre cell, 0 where not
     observed) of a polar image ``power`` (beams, bins) whose beams were acquired at
     ``beam_poses_xyt`` (B, 3) relative to the grid's frame; also the centre (x, y) of cell
-    (0, 0). Azimuths are assumed evenly spaced and increasing (one turn or part of one)."""
+    (0, 0). Azimuths are assumed evenly spaced and increasing (one turn or part of one).
+
+    ``height_m``: the radar's height above a flat ground. The spectra measure slant range
+    R; a cell at ground range r is read at R = sqrt(r^2 + h^2) (ground-range projection).
+    With h = 0 the grid is the slant-range image (a ground echo at 5 m from a radar 1.3 m
+    high would land 17 cm too far, 8 cm at 10 m)."""
     power = np.asarray(power, np.float32)
     n_beams = power.shape[0]
     az = np.unwrap(np.asarray(azimuth_rad, float))
@@ -149,7 +155,11 @@ def scan_to_grid(power: np.ndarray, azimuth_rad, beam_poses_xyt, range_per_bin_m
         r, bearing = cv2.cartToPolar(c * dx + s * dy, c * dy - s * dx)
     rows, j0 = _extended_polar(power, az0, daz, full_turn)
     map_y = (bearing - np.float32(az0)) * np.float32(1.0 / daz) - np.float32(j0)
-    map_x = r * np.float32(1.0 / range_per_bin_m)
+    if height_m > 0.0:
+        r_slant = cv2.magnitude(r, np.full_like(r, np.float32(height_m)))
+        map_x = r_slant * np.float32(1.0 / range_per_bin_m)
+    else:
+        map_x = r * np.float32(1.0 / range_per_bin_m)
     grid = cv2.remap(rows, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                      borderValue=0.0)
     grid[r > range_max_m] = 0.0

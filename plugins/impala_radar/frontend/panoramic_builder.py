@@ -29,7 +29,9 @@ class PanoramicBuilder(Component):
     ``yaw_rate_radps`` hypothesis (a power-only radar replayed without odometry). The
     within-turn correction restarts every turn (only poses relative to t_ref are used).
     With ``doppler_compensation`` the static Doppler is removed from both ramps before they
-    are averaged (the image of a Doppler radar is then the mean of the two ramps).
+    are averaged (the image of a Doppler radar is then the mean of the two ramps). With
+    ``ground_range`` each cell reads the slant range sqrt(r^2 + h^2) of its ground range r
+    (flat ground, radar ``config.height_m`` high): ground clutter lands where it is.
     """
 
     beams = Input(RadarBeam, maxsize=8192, doc="beams of the rotating radar, in time order")
@@ -44,6 +46,7 @@ class PanoramicBuilder(Component):
     yaw_rate_radps = Param(float, default=0.0, doc="constant yaw-rate hypothesis without gyro")
     motion_correction = Param(bool, default=True, doc="place each beam at its own pose")
     doppler_compensation = Param(bool, default=True, doc="remove the static Doppler before averaging ramps")
+    ground_range = Param(bool, default=True, doc="project slant ranges onto the ground (radar config.height_m high)")
 
     def start(self) -> None:
         self._buf: list[tuple[int, RadarBeam]] = []
@@ -97,7 +100,8 @@ class PanoramicBuilder(Component):
         else:
             power = up
         range_max = self.range_max_m or config.range_max_m
-        data, (ox, oy) = scan_to_grid(power, azimuth, rel, config.range_per_bin_m, self.cell_m, range_max)
+        height = config.height_m if self.ground_range else 0.0
+        data, (ox, oy) = scan_to_grid(power, azimuth, rel, config.range_per_bin_m, self.cell_m, range_max, height)
         t_ref = int(t_ns[-1])
         self.scan.emit(t_ref, RadarScan(first.turn, t_ns, azimuth, up, down, config))
         pose = Pose2D(float(ref[0]), float(ref[1]), wrap_angle(float(ref[2])), frame="odom")
