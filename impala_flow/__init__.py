@@ -9,9 +9,12 @@ from importlib.metadata import PackageNotFoundError, version
 from .clock import FakeClock, MissionClock, ReplayClock
 from .component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
 from .executor import OfflineExecutor, run_offline
+from .graph import GraphError
 from .network import Connection, CycleError, Network
 from .ports import EmptyInput, InputPort, OutOfHistory, OutputPort
+from .runtime import RealTimeExecutor
 from .sample import Sample
+from .session import Session
 from .summary import ComponentError, RunSummary
 
 try:
@@ -23,5 +26,6 @@ __all__ = [
     "Sample", "Component", "Source", "Input", "Output", "Param", "Periodic", "REQUIRED",
     "ParamError", "Network", "Connection", "CycleError", "OfflineExecutor", "run_offline",
     "ReplayClock", "MissionClock", "FakeClock", "RunSummary", "ComponentError",
-    "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "__version__",
+    "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "RealTimeExecutor", "Session", "GraphError",
+    "__version__",
 ]
