@@ -8,6 +8,7 @@ from impala_flow.component import Component, Input, Output, Param
 from impala_flow.msgs import RadarBeam, RadarConfig, RadarDetections, Speed
 
 from .pairing import Pairs, pair_turn, radial_speed_from_beats_mps, range_from_beats_m, xcorr_speed_prior
+from .turns import TurnBuffer
 
 __all__ = ["FuzzyPairer", "detections_of_pairs"]
 
@@ -57,21 +58,16 @@ class FuzzyPairer(Component):
     rules = Param(list, default=[], doc="fuzzy rules replacing fuzzy.DEFAULT_RULES when not empty")
 
     def start(self) -> None:
-        self._buf: list[tuple[int, RadarBeam]] = []
+        self._turn = TurnBuffer()
         self.turns = 0
         self.n_detections = 0
         self.last_prior_mps = float("nan")
 
     def process(self, t: int) -> None:
-        beam: RadarBeam = self.beams.take()
-        if self._buf and beam.turn != self._buf[-1][1].turn:
-            self._flush()
-        self._buf.append((t, beam))
-        if beam.index == beam.config.beams_per_turn - 1:
-            self._flush()
+        for buf in self._turn.add(t, self.beams.take()):
+            self._flush(buf)
 
-    def _flush(self) -> None:
-        buf, self._buf = self._buf, []
+    def _flush(self, buf: list[tuple[int, RadarBeam]]) -> None:
         t_ns = np.array([t for t, _ in buf], np.int64)
         first = buf[0][1]
         config = first.config

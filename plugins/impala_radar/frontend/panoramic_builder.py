@@ -8,6 +8,7 @@ from impala_flow.component import Component, Input, Output, Param
 from impala_flow.msgs import Grid, Pose2D, RadarBeam, RadarScan, Speed, YawRate, wrap_angle
 
 from .panoramic import doppler_compensated_power, integrate_poses, relative_to, scan_to_grid
+from .turns import TurnBuffer
 
 __all__ = ["PanoramicBuilder"]
 
@@ -49,18 +50,14 @@ class PanoramicBuilder(Component):
     ground_range = Param(bool, default=True, doc="project slant ranges onto the ground (radar config.height_m high)")
 
     def start(self) -> None:
-        self._buf: list[tuple[int, RadarBeam]] = []
+        self._turn = TurnBuffer()
         self._pose: np.ndarray | None = None  # odom pose at the previous t_ref
         self._t_prev: int | None = None
         self.turns = 0
 
     def process(self, t: int) -> None:
-        beam: RadarBeam = self.beams.take()
-        if self._buf and beam.turn != self._buf[-1][1].turn:
-            self._flush()
-        self._buf.append((t, beam))
-        if beam.index == beam.config.beams_per_turn - 1:
-            self._flush()
+        for buf in self._turn.add(t, self.beams.take()):
+            self._flush(buf)
 
     def _rates(self, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Speed and yaw rate at ``t_ns`` from the sensor histories, or the constants."""
@@ -76,8 +73,7 @@ class PanoramicBuilder(Component):
                 out.append(np.full(len(t_ns), const))
         return out[0], out[1]
 
-    def _flush(self) -> None:
-        buf, self._buf = self._buf, []
+    def _flush(self, buf: list[tuple[int, RadarBeam]]) -> None:
         t_ns = np.array([t for t, _ in buf], np.int64)
         first = buf[0][1]
         config = first.config
