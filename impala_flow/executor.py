@@ -36,7 +36,7 @@ from .ports import InputPort
 from .sample import Sample
 from .summary import ComponentError, RunSummary
 
-__all__ = ["OfflineExecutor", "run_offline", "stop_components"]
+__all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters"]
 
 _SRC, _DELIVER, _TIMER = 0, 1, 2
 
@@ -215,7 +215,7 @@ class OfflineExecutor:
             summary.wall_s = time.perf_counter() - wall0
             summary.processed = counts
             summary.skipped = {k: v for k, v in skipped.items() if v}
-            self._collect(order)
+            collect_counters(summary, order)
             if self.progress is not None and cur_t is not None:
                 self.progress(cur_t, summary.mission_start_ns)
         if error is not None:
@@ -224,23 +224,29 @@ class OfflineExecutor:
             raise error
         return summary
 
-    def _collect(self, order: list[Component]) -> None:
-        s = self.summary
-        for c in order:
-            for g in c.sync_groups.values():
-                for m in g.members:
-                    m.stats.unmatched += m.leftover() + (m._current is not None)
-                    m._fifo.clear()
-                    m._current = None
-            for name, p in c.inputs.items():
-                if p.group is None and p.policy == "reactive":
-                    p.stats.unconsumed = len(p._fifo)
-                s.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
-            for name, o in c.outputs.items():
-                s.emitted[f"{c.name}.{name}"] = o.count
-            extra = c.summary()
-            if extra:
-                s.extra[c.name] = extra
+
+def collect_counters(summary: RunSummary, order: list[Component],
+                     unconsumed: dict[InputPort, int] | None = None,
+                     extra: dict[str, dict[str, Any]] | None = None) -> None:
+    """Fill ``summary`` with every input's counters and every output's count at the end of a
+    run (both executors): samples left in sync groups are ``unmatched``, samples left in a
+    reactive FIFO ``unconsumed`` (plus those an executor already removed: ``unconsumed``);
+    ``extra`` adds executor figures to the components' own ``summary()``."""
+    for c in order:
+        for g in c.sync_groups.values():
+            for m in g.members:
+                m.stats.unmatched += m.leftover() + (m._current is not None)
+                m._fifo.clear()
+                m._current = None
+        for name, p in c.inputs.items():
+            if p.group is None and p.policy == "reactive":
+                p.stats.unconsumed = len(p._fifo) + (unconsumed or {}).get(p, 0)
+            summary.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
+        for name, o in c.outputs.items():
+            summary.emitted[f"{c.name}.{name}"] = o.count
+        figures = {**(c.summary() or {}), **(extra or {}).get(c.name, {})}
+        if figures:
+            summary.extra[c.name] = figures
 
 
 def stop_components(started: list[Component]) -> ComponentError | None:

@@ -93,7 +93,7 @@ from typing import Any, Protocol
 
 from .clock import MissionClock
 from .component import Component, Source
-from .executor import stop_components
+from .executor import collect_counters, stop_components
 from .network import Network
 from .ports import InputPort, SyncGroup
 from .sample import Sample
@@ -478,7 +478,12 @@ class RealTimeExecutor:
             skipped = {st.comp.name: st.skipped for st in self._states if st.skipped}
             skipped.update(self._source_skips)
             summary.skipped = skipped
-            self._collect(order, states, offsets)
+            extra: dict[str, dict[str, Any]] = {name: {"clock_offset_ns": off} for name, off in offsets.items()}
+            for st in self._states:
+                if st.missed_ticks:
+                    extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
+            removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
+            collect_counters(summary, order, removed, extra)
             for c in order:  # leave the ports as the offline executor expects them
                 for inp in c.inputs.values():
                     inp._cond = None
@@ -579,29 +584,6 @@ class RealTimeExecutor:
                             st.unconsumed[inp] = st.unconsumed.get(inp, 0) + n
                     if inp._cond is not None:
                         inp._cond.notify_all()
-
-    def _collect(self, order: list[Component], states: dict[str, _State], offsets: dict[str, int]) -> None:
-        s = self.summary
-        for c in order:
-            for g in c.sync_groups.values():
-                for m in g.members:
-                    m.stats.unmatched += m.leftover() + (m._current is not None)
-                    m._fifo.clear()
-                    m._current = None
-            st = states.get(c.name)
-            for name, p in c.inputs.items():
-                if p.group is None and p.policy == "reactive":
-                    p.stats.unconsumed = len(p._fifo) + (st.unconsumed.get(p, 0) if st is not None else 0)
-                s.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
-            for name, o in c.outputs.items():
-                s.emitted[f"{c.name}.{name}"] = o.count
-            extra = dict(c.summary() or {})
-            if st is not None and st.missed_ticks:
-                extra["missed_ticks"] = st.missed_ticks
-            if c.name in offsets:
-                extra["clock_offset_ns"] = offsets[c.name]
-            if extra:
-                s.extra[c.name] = extra
 
 
 def run_realtime(network: Network, **kw: Any) -> RunSummary:
