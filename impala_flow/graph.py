@@ -32,7 +32,7 @@ from .yamlloc import Loc, LocDict, LocList, YamlError, load_value, load_yaml
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
-    "load_graph_text", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
+    "load_graph_text", "resolve_graph", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
 ]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
@@ -207,6 +207,20 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...]) -> tuple[
 def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = (),
                variables: dict[str, Any] | None = None, text: str | None = None) -> GraphSpec:
     """Load and validate a graph file; raise :class:`GraphError` with every problem."""
+    from .build import validate
+
+    spec, problems = resolve_graph(path, overrides, variables, text)
+    problems += validate(spec, registry)
+    if problems:
+        raise GraphError(problems)
+    return spec
+
+
+def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,
+                  text: str | None = None) -> tuple[GraphSpec, list[Problem]]:
+    """Read a graph with its includes, variables and overrides applied, not yet checked
+    against the plugins: (spec, problems found so far). A file that cannot be read at all
+    raises :class:`GraphError`."""
     problems: list[Problem] = []
     path = Path(path)
     try:
@@ -242,12 +256,7 @@ def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = 
             problems.append(Problem(None, f"--set {item}: no component '{comp}'" + did_you_mean(hint)))
             continue
         spec.components[comp].params[param] = value
-    from .build import validate
-
-    problems += validate(spec, registry)
-    if problems:
-        raise GraphError(problems)
-    return spec
+    return spec, problems
 
 
 def load_graph_text(text: str, registry: Registry, name: str = "<graph>", **kw: Any) -> GraphSpec:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-import yaml
-
+from ..graph import GraphError, resolve_graph
+from ..yamlloc import YamlError
 from . import EXIT_USAGE, CommandError
 from ._common import add_graph_args, open_session, parse_vars, run_network
 
@@ -27,29 +27,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def replayer_ids(graph_path: str) -> list[str]:
-    """Ids of the components of type io.Replayer declared in the graph file itself."""
+def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
+    """Ids of the io.Replayer components of the graph, its includes resolved."""
     try:
-        with open(graph_path, encoding="utf-8") as f:
-            doc = yaml.safe_load(f) or {}
-    except (OSError, yaml.YAMLError) as e:
-        raise CommandError(f"{graph_path}: {e}", EXIT_USAGE) from None
-    comps = doc.get("components") or {}
-    return [cid for cid, c in comps.items() if isinstance(c, dict) and c.get("type") == REPLAYER]
+        spec, _ = resolve_graph(graph_path, variables=variables)
+    except (GraphError, YamlError) as e:
+        raise CommandError(str(e), EXIT_USAGE) from None
+    return [c.id for c in spec.components.values() if c.type == REPLAYER]
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..graph import GraphError
-    from ..yamlloc import YamlError
-
-    ids = replayer_ids(args.graph)
+    variables = parse_vars(args.variables)
+    ids = replayer_ids(args.graph, variables)
     if not ids:
         raise CommandError(f"{args.graph}: no component of type {REPLAYER} to bind {args.file} "
                            "to", EXIT_USAGE)
     session = open_session()
     overrides = [f"{cid}.path={args.file}" for cid in ids] + list(args.overrides)
     try:
-        spec = session.load(args.graph, overrides, parse_vars(args.variables))
+        spec = session.load(args.graph, overrides, variables)
     except (GraphError, YamlError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
     return run_network(session, spec, speed=args.speed,

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from mcap.reader import make_reader
 
 from impala_flow import msgs
 from impala_flow.cli import main
@@ -84,3 +85,16 @@ def test_replay_binds_the_file_to_the_graph(mission: Path, tmp_path: Path) -> No
                  str(tmp_path / "s.csv")]) == 0
     rows = list(csv.reader((tmp_path / "s.csv").read_text().splitlines()))
     assert len(rows) == 101 and rows[-1][:2] == ["990000000", "49.5"]
+
+
+def test_replay_finds_a_replayer_declared_in_an_included_file(mission: Path, tmp_path: Path) -> None:
+    (tmp_path / "source.yaml").write_text(yaml.safe_dump({
+        "components": {"mission": {"type": "io.Replayer", "params": {"path": "missing.mcap", "streams": ["odo/*"]}}}}))
+    out = tmp_path / "again.mcap"
+    graph = tmp_path / "g.yaml"
+    graph.write_text(yaml.safe_dump({
+        "name": "replay-included", "include": "source.yaml",
+        "record": {"path": str(out), "streams": [{"from": "mission.odo/speed", "topic": "odo/speed"}]}}))
+    assert main(["replay", str(mission), str(graph), "--no-progress"]) == 0
+    with open(out, "rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages()) == 100  # every recorded speed, replayed
