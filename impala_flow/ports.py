@@ -78,8 +78,7 @@ def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
         return float(a) + w * (float(b) - float(a))
     if isinstance(a, np.ndarray) and a.dtype.kind in "fiu":
         if angular:
-            d = (b - a + np.pi) % (2 * np.pi) - np.pi
-            return (a + w * d + np.pi) % (2 * np.pi) - np.pi
+            return wrap_angle(a + w * wrap_angle(b - a))
         return a + w * (b - a)
     return a if w < 1.0 else b  # not interpolable: zero-order hold
 

@@ -12,8 +12,8 @@ from ._base import message
 __all__ = ["Scalar", "Pose2D", "Twist2D", "Trajectory2D", "Grid", "Points2D", "wrap_angle"]
 
 
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to [-pi, pi)."""
+def wrap_angle(a: float | np.ndarray) -> float | np.ndarray:
+    """Wrap an angle (or an array of angles) to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impala_flow.msgs import wrap_angle
+
 __all__ = [
     "interpolate_truth", "rigid_align_2d", "align_first", "apply_rigid", "path_length_m",
     "distance_travelled_m", "relative_error_pct", "TrajectoryMetrics", "trajectory_metrics",
@@ -29,7 +31,7 @@ def interpolate_truth(t_ns: np.ndarray, truth_t_ns: np.ndarray, truth_xyt: np.nd
     x = np.interp(rel, rel_t, truth_xyt[:, 0])
     y = np.interp(rel, rel_t, truth_xyt[:, 1])
     th = np.interp(rel, rel_t, np.unwrap(truth_xyt[:, 2]))
-    return np.column_stack([x, y, (th + np.pi) % (2 * np.pi) - np.pi]), inside
+    return np.column_stack([x, y, wrap_angle(th)]), inside
 
 
 def rigid_align_2d(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -54,7 +56,7 @@ def apply_rigid(r: np.ndarray, t: np.ndarray, xyt: np.ndarray) -> np.ndarray:
     """Poses moved by (R, t): positions rotated and shifted, headings rotated."""
     xy = xyt[:, :2] @ r.T + t
     th = xyt[:, 2] + math.atan2(r[1, 0], r[0, 0])
-    return np.column_stack([xy, (th + np.pi) % (2 * np.pi) - np.pi])
+    return np.column_stack([xy, wrap_angle(th)])
 
 
 def distance_travelled_m(xy: np.ndarray) -> np.ndarray:
@@ -134,7 +136,7 @@ def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.nda
     r, t = rigid_align_2d(est[:, :2], truth[:, :2]) if align == "rigid" else align_first(est, truth)
     aligned = apply_rigid(r, t, est)
     err = np.hypot(*(aligned[:, :2] - truth[:, :2]).T)
-    dth = (aligned[:, 2] - truth[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    dth = wrap_angle(aligned[:, 2] - truth[:, 2])
     dist = distance_travelled_m(truth[:, :2])
     first = apply_rigid(*align_first(est, truth), est)
     final = float(np.hypot(*(first[-1, :2] - truth[-1, :2])))

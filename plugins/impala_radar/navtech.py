@@ -98,7 +98,7 @@ def scan_to_beams(scan: NavtechScan, turn: int,
     """Valid rows of ``scan`` as ``(t_ns, RadarBeam)`` (power in ``up``, ``down`` empty),
     azimuth converted to counter-clockwise from the heading."""
     empty = np.zeros(0, dtype=np.float32)
-    azimuth_ccw = (np.pi - scan.azimuth_rad) % (2.0 * np.pi) - np.pi  # wrap(-azimuth)
+    azimuth_ccw = msgs.wrap_angle(-scan.azimuth_rad)
     beams = []
     for i in np.flatnonzero(scan.valid).tolist():
         beam = msgs.RadarBeam(float(azimuth_ccw[i]), int(turn), i, scan.power[i], empty, config)
@@ -158,7 +158,7 @@ def compose_relative_poses(rel: OxfordRelativePoses,
     x = x0 + np.concatenate([[0.0], np.cumsum(c * rel.x_m - s * rel.y_m)])
     y = y0 + np.concatenate([[0.0], np.cumsum(s * rel.x_m + c * rel.y_m)])
     t = np.concatenate([rel.destination_t_ns[:1], rel.source_t_ns])
-    return t, np.column_stack([x, y, (theta + np.pi) % (2.0 * np.pi) - np.pi])
+    return t, np.column_stack([x, y, msgs.wrap_angle(theta)])
 
 
 def _scan_paths(folder: Path) -> list[tuple[int, Path]]:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import math
 
+from impala_flow.msgs import wrap_angle
+
 __all__ = ["compose", "inverse", "between", "wrap"]
 
 
-def wrap(a: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+wrap = wrap_angle  # angle wrapped to [-pi, pi)
 
 
 def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:

@@ -33,6 +33,7 @@ from operator import itemgetter
 import numpy as np
 
 from impala_flow.msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig
+from impala_flow.msgs import wrap_angle as _wrap
 
 from .spectra import Echoes, RadarParams, Synthesizer, echoes
 from .world import World
@@ -52,10 +53,6 @@ def beam_times_ns(start_t_ns: int, turn: int, config: RadarConfig) -> np.ndarray
 def beam_azimuths_rad(config: RadarConfig) -> np.ndarray:
     """Antenna azimuth of each beam in the vehicle frame (CCW from the heading)."""
     return 2.0 * np.pi * (np.arange(config.beams_per_turn) + 0.5) / config.beams_per_turn
-
-
-def _wrap(a):
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _bearing_window(idx, sorted_bearing, mid, half):

@@ -33,14 +33,12 @@ import numpy as np
 from scipy.interpolate import splev, splprep
 from scipy.ndimage import gaussian_filter1d
 
+from impala_flow.msgs import wrap_angle as _wrap
+
 __all__ = ["Trajectory"]
 
 _DS_M = 0.05  # arc-length step of the path samples
 _CURVATURE_MARGIN = 0.98  # smoothing aims below the limit by this factor
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _densify(points: np.ndarray, spacing_m: float) -> tuple[np.ndarray, np.ndarray]:
