@@ -41,10 +41,12 @@ def impala_flow_register(registry: Registry) -> None:
 
 
 @hookspec
-def impala_flow_add_commands(subparsers: argparse._SubParsersAction, registry: Registry) -> None:
+def impala_flow_add_commands(subparsers: argparse._SubParsersAction) -> None:
     """Add subcommands to the ``impala-flow`` command line.
 
-    Each parser must set ``func=callable(args) -> int`` with ``set_defaults``.
+    Each parser must set ``func=callable(args) -> int`` with ``set_defaults``. Called while
+    the command line is parsed, before any registry exists: import what a command needs
+    inside its function, and open a ``Session`` there when it needs the plugins.
     """
 
 

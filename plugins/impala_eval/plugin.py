@@ -1,19 +1,25 @@
-"""Entry point of the evaluation plugin (``eval = "impala_eval.plugin"``)."""
+"""Entry point of the evaluation plugin (``eval = "impala_eval.plugin"``).
+
+Component and command modules are imported inside the hooks, so loading the plugin (e.g.
+to build the command line) stays cheap.
+"""
+
+from __future__ import annotations
 
 from typing import Any
 
 from impala_flow.plugins import hookimpl
 
-from .evaluator import TrajectoryEvaluator
-
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    from .evaluator import TrajectoryEvaluator
+
     registry.add_component(TrajectoryEvaluator)
 
 
 @hookimpl
-def impala_flow_add_commands(subparsers: Any, registry: Any) -> None:
+def impala_flow_add_commands(subparsers: Any) -> None:
     from .demo import add_demo_command
 
     add_demo_command(subparsers)

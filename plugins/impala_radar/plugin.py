@@ -24,7 +24,7 @@ def impala_flow_register(registry: Any) -> None:
 
 
 @hookimpl
-def impala_flow_add_commands(subparsers: Any, registry: Any) -> None:
+def impala_flow_add_commands(subparsers: Any) -> None:
     from .commands import add_commands
 
     add_commands(subparsers)
