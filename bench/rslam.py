@@ -146,12 +146,13 @@ def run_mission(turns: int, synthetic: bool, report: str) -> dict:
 
 
 def run_oxford() -> dict:
-    folder = Path(os.environ.get("IMPALA_FLOW_TEST_DATA", ROOT.parent / "shared" / "data")) / \
-        "oxford-radar-robotcar-sample"
-    if not folder.exists():
-        return {}
-    sys.path.insert(0, str(ROOT))  # the Oxford scan-pair evaluation lives beside its test
+    sys.path.insert(0, str(ROOT))  # the data lookup and the scan-pair evaluation live beside their tests
+    from tests.datasets import find_oxford_sample
     from tests.slam.oxford_pairs import register_oxford
+
+    folder = find_oxford_sample()
+    if folder is None:
+        return {}
 
     r = register_oxford(folder, cell_m=0.1)
     return {"oxford_trans_err_m": r.mean_trans_err_m, "oxford_rot_err_deg": r.mean_rot_err_deg,
