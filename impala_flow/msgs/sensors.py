@@ -16,7 +16,7 @@ __all__ = [
 SPEED_OF_LIGHT_MPS = 299_792_458.0
 
 
-@message("impala.RadarConfig", version=1)
+@message("impala.RadarConfig", version=2)
 class RadarConfig:
     """How a rotating radar's beams were acquired; every beam carries the one it came from.
 
@@ -26,7 +26,10 @@ class RadarConfig:
     ``doppler = False``, ``bandwidth_hz``/``modulation_hz`` of its own and ``bin_hz`` chosen
     so that :meth:`range_of_bin_m` gives its range bins. ``window`` is the weighting
     applied before the FFT: it sets the width of a target's peak (Hann resolves about
-    2 dR, ``rect`` dR with -13 dB sidelobes).
+    2 dR, ``rect`` dR with -13 dB sidelobes). ``range_offset_m`` is the range of bin 0:
+    bin k covers ``range_offset_m + k * range_per_bin_m`` (a reader whose format gives
+    bin centres, like Navtech's, sets half a bin; the simulator's spectra are 0 there).
+    Version 2 added ``range_offset_m``.
     """
 
     name: str
@@ -43,6 +46,7 @@ class RadarConfig:
     doppler: bool = True
     height_m: float = 1.3
     window: str = "hann"  # weighting before the FFT: "hann" (peaks ~4 bins wide) or "rect"
+    range_offset_m: float = 0.0  # range of bin 0 (bin k: range_offset_m + k range_per_bin_m)
 
     @property
     def range_per_bin_m(self) -> float:
@@ -60,7 +64,12 @@ class RadarConfig:
         return SPEED_OF_LIGHT_MPS * self.modulation_hz / (2.0 * self.f0_hz)
 
     def range_of_bin_m(self, bins: np.ndarray | float) -> np.ndarray | float:
-        return np.asarray(bins) * self.range_per_bin_m
+        """Range (m) of (fractional) bin indices: ``range_offset_m + k * range_per_bin_m``."""
+        return self.range_offset_m + np.asarray(bins) * self.range_per_bin_m
+
+    def bin_of_range(self, range_m: np.ndarray | float) -> np.ndarray | float:
+        """Fractional bin index of a range (the inverse of :meth:`range_of_bin_m`)."""
+        return (np.asarray(range_m) - self.range_offset_m) / self.range_per_bin_m
 
 
 @message("impala.RadarBeam", version=1)

@@ -25,7 +25,9 @@ def _arrays(samples: list[tuple[int, Pose2D]]) -> tuple[np.ndarray, np.ndarray]:
 class TrajectoryEvaluator(Component):
     """Matches the estimate to the truth by timestamp (truth interpolated), aligns it (rigid
     least squares or first pose), and at stop() writes ``report``: metrics.json, error vs
-    distance (seed Fig. 12), trajectory over the map (Fig. 10b), the map."""
+    distance (seed Fig. 12), trajectory over the map (Fig. 10b), the map; with ``pairs``
+    also every consecutive pair's relative-motion error (scan-to-scan registration against
+    the truth's motion between the same times) and their figure, pair_errors.png."""
 
     estimate = Input(Pose2D, maxsize=1 << 20, doc="estimated poses (each one evaluated)")
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
@@ -36,6 +38,9 @@ class TrajectoryEvaluator(Component):
     align = Param(str, default="rigid", choices=("rigid", "first"), doc="alignment before the ATE")
     segment_m = Param(float, default=100.0, gt=0, doc="segment length of the relative error")
     title = Param(str, default="R-SLAM", doc="name of the estimate in the figures")
+    baseline_title = Param(str, default="dead reckoning", doc="name of the baseline in the figures")
+    pairs = Param(bool, default=False,
+                  doc="report every consecutive pair's relative-motion error (metrics.json, pair_errors.png)")
     map_scale = Param(str, default="db", choices=("db", "power"),
                       doc="unit of the map's values: dB (slam.RSlam's map) or linear power")
 
@@ -63,6 +68,10 @@ class TrajectoryEvaluator(Component):
         if len(base) >= 2:
             self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m)
             self.figures.update(self.baseline_metrics.figures("baseline_"))
+        if self.pairs:
+            self.figures["pairs"] = self.metrics.pairs.rows()
+            if self.baseline_metrics is not None:
+                self.figures["baseline_pairs"] = self.baseline_metrics.pairs.rows()
         return self.figures
 
     def stop(self) -> None:
@@ -74,8 +83,10 @@ class TrajectoryEvaluator(Component):
         self.log.info("trajectory metrics\n%s", format_metrics(figures))
         if self.report:
             write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
-                         (m.rotation, m.translation_m), self.title, self.map_scale)
+                         (m.rotation, m.translation_m), self.title, self.map_scale, self.baseline_title,
+                         pairs_figure=self.pairs)
 
     def summary(self) -> dict:
-        keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct")
+        keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct",
+                "pair_trans_err_mean_m", "pair_rot_err_mean_deg")
         return {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}

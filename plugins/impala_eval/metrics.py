@@ -17,6 +17,7 @@ from impala_flow.msgs import wrap_angle
 __all__ = [
     "interpolate_truth", "rigid_align_2d", "align_first", "apply_rigid", "path_length_m",
     "distance_travelled_m", "relative_error_pct", "TrajectoryMetrics", "trajectory_metrics",
+    "PairErrors", "pair_errors",
 ]
 
 
@@ -88,6 +89,56 @@ def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
 
 
+def _steps(xyt: np.ndarray) -> np.ndarray:
+    """(N-1, 3) motion from each pose to the next, in the frame of the first: (-) a (+) b."""
+    a, b = xyt[:-1], xyt[1:]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[:, 2] - a[:, 2])])
+
+
+@dataclass
+class PairErrors:
+    """Relative-motion errors of consecutive estimated poses (scan-to-scan registration):
+    each step (-) x_{k-1} (+) x_k against the truth's step between the same times, in the
+    earlier pose's frame. ``along_err_m``/``lateral_err_m`` are the signed components of
+    the translation error (x forward, y left); ``t_ns`` the later pose's time."""
+
+    t_ns: np.ndarray
+    trans_err_m: np.ndarray
+    rot_err_deg: np.ndarray
+    along_err_m: np.ndarray
+    lateral_err_m: np.ndarray
+    true_step_m: np.ndarray
+
+    def figures(self, prefix: str = "") -> dict[str, float | int | None]:
+        n = len(self.t_ns)
+        out: dict[str, float | int | None] = {prefix + "n_pairs": n}
+        for key, values, reduce in (("pair_trans_err_mean_m", self.trans_err_m, np.mean),
+                                    ("pair_trans_err_max_m", self.trans_err_m, np.max),
+                                    ("pair_rot_err_mean_deg", self.rot_err_deg, np.mean),
+                                    ("pair_rot_err_max_deg", self.rot_err_deg, np.max),
+                                    ("pair_lateral_err_mean_m", self.lateral_err_m, np.mean),
+                                    ("pair_along_err_mean_m", self.along_err_m, np.mean)):
+            out[prefix + key] = float(reduce(values)) if n else None
+        return out
+
+    def rows(self) -> list[dict[str, float | int]]:
+        """One record per pair (for metrics.json)."""
+        return [{"t_ns": int(t), "trans_err_m": float(e), "rot_err_deg": float(r), "along_err_m": float(a),
+                 "lateral_err_m": float(lat), "true_step_m": float(d)}
+                for t, e, r, a, lat, d in zip(self.t_ns, self.trans_err_m, self.rot_err_deg, self.along_err_m,
+                                              self.lateral_err_m, self.true_step_m, strict=True)]
+
+
+def pair_errors(est_xyt: np.ndarray, truth_xyt: np.ndarray, t_ns: np.ndarray) -> PairErrors:
+    """:class:`PairErrors` of estimated poses and the truth at the same times."""
+    e, g = _steps(np.asarray(est_xyt, float)), _steps(np.asarray(truth_xyt, float))
+    d = e - g
+    return PairErrors(np.asarray(t_ns, np.int64)[1:], np.hypot(d[:, 0], d[:, 1]),
+                      np.degrees(np.abs(wrap_angle(d[:, 2]))), d[:, 0], d[:, 1], np.hypot(g[:, 0], g[:, 1]))
+
+
 @dataclass
 class TrajectoryMetrics:
     """Every figure with its unit in its name; ``error_m``/``distance_m`` along the path."""
@@ -109,6 +160,7 @@ class TrajectoryMetrics:
     align: str
     rotation: np.ndarray  # (R, t) of the alignment: estimate frame -> truth frame
     translation_m: np.ndarray
+    pairs: PairErrors
 
     def figures(self, prefix: str = "") -> dict[str, float | int | str]:
         keys = ("ate_rmse_m", "ate_mean_m", "ate_max_m", "heading_rmse_deg", "rel_err_per_100m_pct",
@@ -117,6 +169,7 @@ class TrajectoryMetrics:
         for k in keys:
             v = getattr(self, k)
             out[prefix + k] = v if isinstance(v, (int, str)) or not math.isnan(v) else None  # type: ignore[assignment]
+        out.update(self.pairs.figures(prefix))
         return out
 
 
@@ -148,4 +201,5 @@ def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.nda
         rel_err_per_100m_pct=relative_error_pct(first, truth, segment_m),
         final_error_m=final, drift_pct=100.0 * final / length if length > 0 else float("nan"),
         path_length_m=length, n_poses=int(len(t_ns)), align=align, rotation=r, translation_m=t,
+        pairs=pair_errors(est, truth, t_ns),
     )

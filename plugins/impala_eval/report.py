@@ -74,7 +74,7 @@ def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = 
 def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
                  baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
                  transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM",
-                 map_scale: str = "db") -> Path:
+                 map_scale: str = "db", baseline_title: str = "dead reckoning", pairs_figure: bool = False) -> Path:
     """Write the report folder (see the module doc); return its path. ``map_scale``: the
     map's values are dB (R-SLAM's map) or linear power."""
     folder = Path(folder)
@@ -89,7 +89,7 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     for i, ax in enumerate(axes):
         if baseline is not None and (i == 1 or not apart):
             ax.plot(baseline.distance_m, baseline.error_m, color=_BASE, lw=1.2,
-                    label=f"dead reckoning (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
+                    label=f"{baseline_title} (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
         ax.plot(est.distance_m, est.error_m, color=_EST, lw=1.4,
                 label=f"{title} (ATE RMSE {est.ate_rmse_m:.3f} m, final drift {est.drift_pct:.2f} %)")
         ax.set(ylabel="position error (m)")
@@ -109,7 +109,7 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
     if baseline is not None:
         ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
-                ls="--", label="dead reckoning")
+                ls="--", label=baseline_title)
     ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2, label=title)
     ax.plot(*est.truth_xyt[0, :2], "o", color="k", ms=5, label="start")
     xy = np.vstack([est.truth_xyt[:, :2], est.est_aligned_xyt[:, :2]])
@@ -125,6 +125,8 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     ax.legend(loc="best", framealpha=0.85)
     fig.savefig(folder / "trajectory_map.png")
 
+    if pairs_figure and len(est.pairs.t_ns):
+        _pairs_figure(folder / "pair_errors.png", est, baseline, title, baseline_title)
     if radar_map is not None:
         fig = _figure(7.5, 7.0)
         ax = fig.add_subplot()
@@ -136,12 +138,45 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     return folder
 
 
+def _pairs_figure(path: Path, est: TrajectoryMetrics, baseline: TrajectoryMetrics | None, title: str,
+                  baseline_title: str) -> None:
+    """Per-pair translation (cm) and rotation (deg) errors, the baseline's as light bars."""
+    p = est.pairs
+    k = np.arange(1, len(p.t_ns) + 1)
+    fig = _figure(8.0, 6.0)
+    axes = fig.subplots(3, 1, sharex=True)
+    series = [(p.trans_err_m * 100.0, "translation error (cm)", f"mean {100 * p.trans_err_m.mean():.1f} cm"),
+              (p.rot_err_deg, "rotation error (deg)", f"mean {p.rot_err_deg.mean():.3f} deg"),
+              (p.lateral_err_m * 100.0, "signed error (cm)", "")]
+    base = baseline.pairs if baseline is not None and len(baseline.pairs.t_ns) == len(p.t_ns) else None
+    for i, (ax, (vals, label, note)) in enumerate(zip(axes, series, strict=True)):
+        if i < 2:
+            if base is not None:
+                bvals = base.trans_err_m * 100.0 if i == 0 else base.rot_err_deg
+                ax.bar(k, bvals, width=0.8, color=_BASE, alpha=0.25,
+                       label=f"{baseline_title} (mean {bvals.mean():.2f})")
+                ax.set_ylim(0, 1.3 * max(float(vals.max()), 1e-6) + 1e-6)
+            ax.bar(k, vals, width=0.5, color=_EST, label=f"{title} ({note})")
+        else:
+            ax.plot(k, p.along_err_m * 100.0, "o-", color="#9467bd", label="along track (x, forward)")
+            ax.plot(k, vals, "s-", color="#ff7f0e", label="lateral (y, left)")
+            ax.axhline(0.0, color="k", lw=0.6)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", frameon=False, fontsize=8)
+    axes[0].set_title(f"Scan-to-scan relative-motion error against the truth ({len(k)} pairs)")
+    axes[-1].set_xlabel("pair (consecutive estimates)")
+    fig.savefig(path)
+
+
 def format_metrics(figures: dict[str, Any]) -> str:
     """Human-readable lines: estimate and baseline side by side."""
     rows = [("ATE RMSE", "ate_rmse_m", "m"), ("ATE mean", "ate_mean_m", "m"), ("ATE max", "ate_max_m", "m"),
             ("heading RMSE", "heading_rmse_deg", "deg"), ("rel. error / 100 m", "rel_err_per_100m_pct", "%"),
             ("final error", "final_error_m", "m"), ("final drift", "drift_pct", "% of path"),
-            ("path length", "path_length_m", "m")]
+            ("path length", "path_length_m", "m"), ("pair error mean", "pair_trans_err_mean_m", "m"),
+            ("pair error max", "pair_trans_err_max_m", "m"), ("pair rotation mean", "pair_rot_err_mean_deg", "deg"),
+            ("pair rotation max", "pair_rot_err_max_deg", "deg")]
     has_base = any(k.startswith("baseline_") for k in figures)
     head = f"{'':22s}{'estimate':>12s}" + (f"{'baseline':>12s}" if has_base else "")
     lines = [head]

@@ -18,10 +18,16 @@ What the seed leaves free, and the values chosen (measured on the simulated Beyn
   match against a perfect map, 1.8 m ATE and 3 % drift over 200 m). In dB: 0.05 deg and
   1.5 cm per match, 0.07 m ATE and 0.03 % drift over the whole mission. Images already in
   dB (Navtech PNGs) use ``"linear"``.
-- **The normaliser of eq. (6)**: ``map_mean = "weighted"``, M = sum alpha A / sum alpha,
-  the running weighted mean (alpha a confidence): a cell reads the echo's level whatever the
-  distance it was seen from. ``"count"`` (1/N, the letter of eq. 6) leaves the footprint
-  of alpha along the trajectory in the map. The template is then A itself, not alpha A
+- **The normaliser of eq. (6)**: ``map_update = "weighted"`` (default), M = sum alpha A /
+  sum alpha, the running weighted mean (alpha a confidence): a cell reads the echo's level
+  whatever the distance it was seen from, and a place seen once (at the edge of the range,
+  behind an obstacle) counts as much as one seen every turn. ``"paper"`` is eq. (6) as the
+  seed writes it, M = 1/N sum alpha A with N the total number of images merged: a cell seen
+  in many images outweighs a transient (a parked car that left, a place glimpsed once), but
+  the map's level grows where the vehicle lingered and carries the footprint of alpha
+  along the trajectory. ``"count"`` divides by the number of images that covered each
+  cell. The weighted mean is the default because the correlation (eq. 5) compares levels:
+  on Beynes it gave the lower error. The template is A itself, not alpha A
   (``MatchParams.weight_template``).
 - **alpha(d)**: 1 / (1 + d aperture / resolution) within [range_min, range_max]
   (:func:`~impala_slam.tilemap.alpha_weight`; IMPALA: 4 deg, 0.75 m, 3-100 m).
@@ -39,7 +45,7 @@ import cv2
 import numpy as np
 
 from impala_flow.component import Component, Input, Output, Param, Periodic
-from impala_flow.msgs import Grid, Pose2D
+from impala_flow.msgs import Grid, Pose2D, Twist2D
 
 from .matching import MatchParams, match_to_map
 from .se2 import between, compose
@@ -63,7 +69,7 @@ class RSlamConfig:
     intensity: str = "db"  # "db": A = 10 log10(P / floor), >= 0; "linear": A = the grid's value
     db_floor: float = 0.0  # floor of the dB scale (the grid's unit); 0: db_floor_quantile of each image
     db_floor_quantile: float = 0.001  # quantile of the observed cells taken as 0 dB when db_floor is 0
-    map_mean: str = "weighted"  # "weighted": sum alpha A / sum alpha; "count": sum alpha A / N
+    map_update: str = "weighted"  # eq. (6) normaliser: "weighted" sum alpha, "paper" N images, "count" per cell
 
 
 class RSlamCore:
@@ -74,6 +80,7 @@ class RSlamCore:
         self.map: TileMap | None = None
         self.poses: list[tuple[int, Pose]] = []  # (t_ns, estimate)
         self._last_odom: Pose | None = None
+        self.last_prediction: Pose | None = None  # the motion model's pose of the last step
         self.failures = 0
         self.match_s = 0.0
         self.update_s = 0.0
@@ -142,14 +149,16 @@ class RSlamCore:
             odom = (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad)
         grid = self.amplitude(grid)
         if self.map is None:
-            self.map = TileMap(self.cfg.map_cell_m or grid.cell_m, self.cfg.tile_m)
+            self.map = TileMap(self.cfg.map_cell_m or grid.cell_m, self.cfg.tile_m,
+                               total_normaliser=self.cfg.map_update == "paper")
             pose, cov, ok = (odom or (0.0, 0.0, 0.0)), np.zeros((3, 3)), True
+            self.last_prediction = pose
         else:
-            pred = self.predict(t_ns, odom)
+            pred = self.last_prediction = self.predict(t_ns, odom)
             t0 = time.perf_counter()
             m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha)
             self.match_s += time.perf_counter() - t0
-            ok = m.valid
+            ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
             if ok:
                 pose, cov = (m.x_m, m.y_m, m.theta_rad), m.cov_xyt
             else:
@@ -175,10 +184,11 @@ class RSlamCore:
     def update_map(self, grid: Grid, pose: Pose) -> None:
         """Merge the panoramic at ``pose`` into the map (eq. 6).
 
-        ``map_mean = "weighted"``: M = sum alpha(d_i) A_i / sum alpha(d_i), the running
-        weighted mean; ``"count"``: M = 1/N sum alpha(d_i) A_i, eq. (6) to the letter, where
-        a cell seen only from afar reads lower than the same echo seen from near (alpha < 1),
-        so the map would hold the trajectory's footprint as well as the scene."""
+        ``map_update = "weighted"``: M = sum alpha(d_i) A_i / sum alpha(d_i), the running
+        weighted mean; ``"paper"``: M = 1/N sum alpha(d_i) A_i with N the number of images
+        merged (eq. 6 as written); ``"count"``: N the number of images that covered the cell.
+        With N, a cell seen only from afar reads lower than the same echo seen from near
+        (alpha < 1), so the map holds the trajectory's footprint as well as the scene."""
         tm = self.map
         assert tm is not None
         half_x = 0.5 * grid.data.shape[1] * grid.cell_m
@@ -193,16 +203,27 @@ class RSlamCore:
         covered = np.isfinite(amp) & (alpha > 0)
         alpha = np.where(covered, alpha, np.float32(0.0))
         weighted = np.where(covered, alpha * amp, np.float32(0.0))
-        tm.add(ix0, iy0, weighted, alpha if self.cfg.map_mean == "weighted" else covered)
+        tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else covered)
+        tm.images += 1
 
 
 class RSlam(Component):
     """Dense radar SLAM (R-SLAM, seed 1 §4.1): each panoramic is located in the global map by
     3-D correlation (eq. 5), then merged into it (eq. 6). Outputs a pose with covariance per
-    turn (frame ``map``) and the whole map every ``map_period_s``."""
+    turn (frame ``map``), the velocity between the last two poses (``twist``: connect it
+    back to the panoramic builder with ``[delay]`` to motion-correct a radar without
+    odometry), the motion model's own trajectory (``prediction``: the predicted increments,
+    odometry or constant velocity, chained without matching; the baseline R-SLAM must beat),
+    and the whole map every ``map_period_s``.
 
-    image = Input(Grid, doc="motion-corrected panoramic, vehicle frame, pose = odometry at t_ref")
+    A NaN or infinite pose is never emitted: a match that fails (peak on the window's
+    border, too weak, empty image, non-finite result) keeps the prediction and is counted
+    in ``match_failures``; images with no observed cell are counted in ``empty_images``."""
+
+    image = Input(Grid, doc="motion-corrected panoramic, vehicle frame, pose = odometry at t_ref (or None)")
     pose = Output(Pose2D, doc="vehicle pose in the map with cov_xyt (m^2, rad^2)")
+    twist = Output(Twist2D, doc="forward speed and yaw rate between the last two poses, with covariance")
+    prediction = Output(Pose2D, doc="the motion model's increments chained (frame odom): the baseline")
     map = Output(Grid, doc="the global radar map M of eq. (6), in the unit of A (dB with intensity db)")
     map_timer = Periodic("map_period_s")
 
@@ -219,8 +240,8 @@ class RSlam(Component):
     db_floor = Param(float, default=0.0, ge=0, doc="0 dB level of the dB scale (0: db_floor_quantile of the image)")
     db_floor_quantile = Param(float, default=0.001, ge=0, lt=1,
                               doc="quantile of the observed cells taken as 0 dB (the noise level)")
-    map_mean = Param(str, default="weighted", choices=("weighted", "count"),
-                     doc="eq. (6) normaliser: sum alpha (weighted mean) or N")
+    map_update = Param(str, default="weighted", choices=("weighted", "paper", "count"),
+                       doc="eq. (6) normaliser: sum alpha (weighted mean), N images (the paper), N per cell")
     map_cell_m = Param(float, default=0.0, ge=0, doc="map cell (0: the panoramic's)")
     tile_m = Param(float, default=64.0, gt=0, doc="side of the map tiles")
     aperture_deg = Param(float, default=4.0, gt=0, doc="antenna aperture for alpha(d) of eq. (6)")
@@ -234,8 +255,11 @@ class RSlam(Component):
         self.core = RSlamCore(RSlamConfig(mp, self.map_cell_m, self.tile_m, self.aperture_deg,
                                           self.resolution_m, self.range_min_m, self.range_max_m,
                                           intensity=self.intensity, db_floor=self.db_floor,
-                                          db_floor_quantile=self.db_floor_quantile, map_mean=self.map_mean))
+                                          db_floor_quantile=self.db_floor_quantile, map_update=self.map_update))
         self.turns = 0
+        self.empty_images = 0
+        self._predicted: Pose | None = None  # the motion model's chained trajectory
+        self._cov_prev = np.zeros((3, 3))
 
     def process(self, t: int) -> None:
         if self.trigger == "map_timer":
@@ -243,9 +267,27 @@ class RSlam(Component):
                 self.map.emit(t, self.core.map.to_grid())
             return
         sample = self.image.take_sample()
-        (x, y, th), cov, _ = self.core.step(sample.timestamp, sample.data)
+        grid: Grid = sample.data
+        if not np.any(np.asarray(grid.data) > 0):
+            self.empty_images += 1
+        core = self.core
+        prev = core.poses[-1][1] if core.poses else None
+        (x, y, th), cov, _ = core.step(sample.timestamp, grid)
         self.turns += 1
         self.pose.emit(sample.timestamp, Pose2D(x, y, th, cov, "map"))
+        step = (0.0, 0.0, 0.0) if prev is None else between(prev, core.last_prediction)
+        self._predicted = (x, y, th) if self._predicted is None else compose(self._predicted, step)
+        px, py, pth = self._predicted
+        self.prediction.emit(sample.timestamp, Pose2D(px, py, pth, frame="odom"))
+        if len(core.poses) >= 2:
+            (t0, _), (t1, _) = core.poses[-2], core.poses[-1]
+            dt = (t1 - t0) * 1e-9
+            v, w = core.velocity()
+            # first-order: the two poses' covariances (independent) through the difference / dt
+            c = (self._cov_prev + cov) / (dt * dt)
+            tw_cov = np.array([[c[0, 0], c[0, 2]], [c[2, 0], c[2, 2]]])
+            self.twist.emit(sample.timestamp, Twist2D(v, w, tw_cov))
+        self._cov_prev = cov
 
     def flush(self, t: int) -> None:
         """The mission is over: emit the final map (whatever the map period)."""
@@ -260,6 +302,7 @@ class RSlam(Component):
         return {
             "turns": self.turns,
             "match_failures": core.failures,
+            "empty_images": self.empty_images,
             "match_ms_per_turn": round(1e3 * core.match_s / self.turns, 2),
             "update_ms_per_turn": round(1e3 * core.update_s / self.turns, 2),
             "map_tiles": tm.n_tiles if tm else 0,

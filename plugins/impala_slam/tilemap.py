@@ -5,8 +5,11 @@ the map frame. Tiles of ``tile_cells`` x ``tile_cells`` cells live in a dict key
 index, so memory grows with the area mapped, never with the mission's bounding box.
 
 Each tile keeps two float32 layers: the sum of ``alpha(d_i) A_i`` and its normaliser, the
-sum of ``alpha(d_i)`` (R-SLAM's default: the running weighted mean) or the number ``N`` of
-panoramics that covered each cell (eq. 6 to the letter); the map value is their ratio.
+sum of ``alpha(d_i)`` (R-SLAM's default: the running weighted mean) or the number of
+panoramics that covered each cell; the map value is their ratio. With
+``total_normaliser`` the value is the sum divided by ``images``, the total number of
+panoramics merged (eq. 6 as the seed writes it: N is the number of images, so a cell seen
+in every image outweighs one seen once); the per-cell layer then only marks the support.
 """
 
 from __future__ import annotations
@@ -55,8 +58,10 @@ def warp_grid_to_map(grid: Grid, pose_xyt: tuple[float, float, float], ix0: int,
 class TileMap:
     """Global map M of eq. (6) in tiles of ``tile_m`` metres created on demand."""
 
-    def __init__(self, cell_m: float, tile_m: float = 64.0) -> None:
+    def __init__(self, cell_m: float, tile_m: float = 64.0, total_normaliser: bool = False) -> None:
         self.cell_m = float(cell_m)
+        self.total_normaliser = total_normaliser
+        self.images = 0  # panoramics merged (the N of eq. 6 with total_normaliser)
         self.tile_cells = max(8, int(round(tile_m / cell_m)))
         self.weighted_sum: dict[tuple[int, int], np.ndarray] = {}  # sum_i alpha(d_i) A_i
         self.count: dict[tuple[int, int], np.ndarray] = {}  # normaliser: sum of alpha, or N
@@ -119,7 +124,10 @@ class TileMap:
             if cnt is None:
                 continue
             c = cnt[tile]
-            np.divide(self.weighted_sum[key][tile], c, out=out[win], where=c > 0)
+            if self.total_normaliser:
+                np.multiply(self.weighted_sum[key][tile], np.float32(1.0 / max(1, self.images)), out=out[win])
+            else:
+                np.divide(self.weighted_sum[key][tile], c, out=out[win], where=c > 0)
             support[win] = c > 0
         return out, support
 

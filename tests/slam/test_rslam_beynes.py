@@ -78,7 +78,7 @@ def test_map_is_the_weighted_mean_of_eq6():
     a = 7.0
     img = Grid(np.full((301, 301), a, np.float32), 0.2, -30.0, -30.0, "vehicle")
     for mean, flat in (("weighted", True), ("count", False)):
-        core = RSlamCore(RSlamConfig(intensity="linear", map_mean=mean, range_max_m=30.0))
+        core = RSlamCore(RSlamConfig(intensity="linear", map_update=mean, range_max_m=30.0))
         core.map = TileMap(0.2)
         core.update_map(img, (0.0, 0.0, 0.0))
         core.update_map(img, (4.3, 1.1, 0.5))

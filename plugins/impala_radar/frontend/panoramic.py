@@ -28,7 +28,7 @@ from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 __all__ = [
     "relative_beam_poses", "integrate_poses", "relative_to", "doppler_compensated_power",
-    "scan_to_grid", "grid_geometry",
+    "scan_to_grid", "grid_geometry", "AzimuthTable", "normalise_beams",
 ]
 
 
@@ -90,6 +90,18 @@ def doppler_compensated_power(up: np.ndarray, down: np.ndarray, azimuth_rad, spe
     return 0.5 * (_shift_rows(up, f_d_bins) + _shift_rows(down, -f_d_bins))
 
 
+def normalise_beams(power: np.ndarray) -> np.ndarray:
+    """Each beam (row) divided by its median power, its floor (float32); a beam whose median
+    is 0 (blanked, all zero) is divided by its smallest positive power, or left at 0."""
+    p = np.asarray(power, np.float32)
+    floor = np.median(p, axis=1)
+    bad = ~(floor > 0)
+    if bad.any():
+        positive = np.where(p > 0, p, np.inf).min(axis=1)
+        floor[bad] = np.where(np.isfinite(positive[bad]), positive[bad], 1.0)
+    return p / floor[:, None].astype(np.float32)
+
+
 @functools.lru_cache(maxsize=4)
 def grid_geometry(n_half: int, cell_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Cell centres X, Y (float32, row = y, column = x, radar at the centre), their range and
@@ -102,66 +114,101 @@ def grid_geometry(n_half: int, cell_m: float) -> tuple[np.ndarray, np.ndarray, n
     return x, y, r, bearing
 
 
-@functools.lru_cache(maxsize=8)
-def _nominal_beam(n_half: int, cell_m: float, n_beams: int, az0: float, daz: float) -> np.ndarray:
-    """Index of the beam nearest each cell's bearing (cached per geometry)."""
-    bearing = grid_geometry(n_half, cell_m)[3]
-    i0 = np.rint(np.mod(bearing - az0, 2.0 * math.pi) / daz).astype(np.intp) % n_beams
-    i0.flags.writeable = False
-    return i0
+class AzimuthTable:
+    """Where each bearing falls among the beams of one turn, whatever their order.
 
+    The beams are sorted by azimuth in [0, 2 pi) (a clockwise radar's turn, a turn that
+    wraps through 0, a partial turn and a missing beam all become the same problem); polar
+    row ``r`` of :meth:`rows` is sorted beam ``r - 1`` with one extra row each side (the
+    last beam before 0, the first after 2 pi), so a bearing maps to a fractional row by
+    linear interpolation in azimuth. Between two beams further apart than ``max_gap`` times
+    the nominal spacing (a partial turn, lost beams) nothing was observed: bearings there
+    read the nearer beam up to half a spacing from it, and nothing (row -1) beyond.
+    Duplicated azimuths keep their first beam in time (``dropped`` counts the others).
+    """
 
-def _extended_polar(power: np.ndarray, az0: float, daz: float, full_turn: bool) -> tuple[np.ndarray, int]:
-    """Rows j = j0 .. j1 of the polar image (row j is beam j mod B, zero outside a partial
-    turn) covering bearings [0, 2 pi) plus one row each side; returns (rows, j0)."""
-    n_beams = power.shape[0]
-    j0 = int(math.floor(-az0 / daz)) - 1
-    j1 = int(math.ceil((2.0 * math.pi - az0) / daz)) + 1
-    j = np.arange(j0, j1 + 1)
-    rows = power[j % n_beams]
-    if not full_turn:
-        rows[(j < 0) | (j >= n_beams)] = 0.0
-    return rows, j0
+    def __init__(self, azimuth_rad, max_gap: float = 2.5) -> None:
+        az = np.mod(np.asarray(azimuth_rad, float), 2.0 * math.pi)
+        order = np.argsort(az, kind="stable")
+        az_s = az[order]
+        keep = np.concatenate([[True], np.diff(az_s) > 1e-9])
+        self.order, self.azimuth_rad = order[keep], az_s[keep]
+        self.dropped = int(len(az) - keep.sum())
+        n = len(self.azimuth_rad)
+        self.n = n
+        az_s = self.azimuth_rad
+        self.xp = np.concatenate([[az_s[-1] - 2.0 * math.pi], az_s, [az_s[0] + 2.0 * math.pi]])
+        gaps = np.diff(self.xp)  # gap before sorted beam k is gaps[k]; gaps[n] is the wrap
+        self.spacing_rad = float(np.median(gaps[1:])) if n > 1 else 2.0 * math.pi
+        limit = max_gap * self.spacing_rad
+        self.big_gaps = np.flatnonzero(gaps > limit) if n > 1 else np.array([0, 1])
+        self.uniform = bool(n > 1 and self.big_gaps.size == 0
+                            and np.all(np.abs(gaps - self.spacing_rad) <= 1e-3 * self.spacing_rad))
+
+    def rows(self, power: np.ndarray) -> np.ndarray:
+        """The polar image in sorted-azimuth order with the wrap rows (float32)."""
+        p = np.asarray(power, np.float32)[self.order]
+        return np.concatenate([p[-1:], p, p[:1]])
+
+    def row_of(self, bearing_rad: np.ndarray) -> np.ndarray:
+        """Fractional row of :meth:`rows` for bearings in [0, 2 pi) (float32); -1 where no
+        beam observed that bearing."""
+        b = np.asarray(bearing_rad, np.float32)
+        if self.uniform:
+            u = np.mod(b - np.float32(self.azimuth_rad[0]), np.float32(2.0 * math.pi))
+            return u * np.float32(1.0 / self.spacing_rad) + np.float32(1.0)
+        row = np.interp(b, self.xp, np.arange(self.n + 2, dtype=float)).astype(np.float32)
+        if self.big_gaps.size:
+            half = 0.5 * self.spacing_rad
+            for k in self.big_gaps.tolist():  # the gap between xp[k] and xp[k + 1]
+                lo, hi = self.xp[k], self.xp[k + 1]
+                inside = (b > lo) & (b < hi)
+                row[inside & (b <= lo + half)] = k
+                row[inside & (b >= hi - half)] = k + 1
+                row[inside & (b > lo + half) & (b < hi - half)] = -10.0
+        return row
+
+    def nearest(self, row: np.ndarray) -> np.ndarray:
+        """Index (into the time-ordered beams) of the beam nearest each fractional row."""
+        k = np.clip(np.rint(row).astype(np.intp) - 1, -1, self.n) % self.n
+        return self.order[k]
 
 
 def scan_to_grid(power: np.ndarray, azimuth_rad, beam_poses_xyt, range_per_bin_m: float,
-                 cell_m: float, range_max_m: float,
-                 height_m: float = 0.0) -> tuple[np.ndarray, tuple[float, float]]:
+                 cell_m: float, range_max_m: float, height_m: float = 0.0, range_offset_m: float = 0.0,
+                 range_min_m: float = 0.0, max_gap: float = 2.5) -> tuple[np.ndarray, tuple[float, float]]:
     """Cartesian grid (float32, row = y, column = x, radar at the centre cell, 0 where not
     observed) of a polar image ``power`` (beams, bins) whose beams were acquired at
     ``beam_poses_xyt`` (B, 3) relative to the grid's frame; also the centre (x, y) of cell
-    (0, 0). Azimuths are assumed evenly spaced and increasing (one turn or part of one).
+    (0, 0). The beams may come in any order and direction of rotation, any number per turn,
+    with missing beams or a partial turn (:class:`AzimuthTable`); bin k is at range
+    ``range_offset_m + k range_per_bin_m``. The grid is the disk of radius ``range_max_m``;
+    cells that were nearer than ``range_min_m`` to the radar when their beam was acquired
+    are 0 (the vehicle's body, the transmitter's leakage).
 
     ``height_m``: the radar's height above a flat ground. The spectra measure slant range
     R; a cell at ground range r is read at R = sqrt(r^2 + h^2) (ground-range projection).
     With h = 0 the grid is the slant-range image (a ground echo at 5 m from a radar 1.3 m
     high would land 17 cm too far, 8 cm at 10 m)."""
-    power = np.asarray(power, np.float32)
-    n_beams = power.shape[0]
-    az = np.unwrap(np.asarray(azimuth_rad, float))
-    daz = float(np.median(np.diff(az))) if n_beams > 1 else 2.0 * math.pi
-    az0 = float(np.mod(az[0], 2.0 * math.pi))
-    full_turn = n_beams * daz >= 2.0 * math.pi - 0.5 * daz
+    table = AzimuthTable(azimuth_rad, max_gap)
     n_half = int(math.ceil(range_max_m / cell_m))
-    x, y, r, bearing = grid_geometry(n_half, float(cell_m))
+    x, y, r_cell, bearing = grid_geometry(n_half, float(cell_m))
+    r = r_cell
     poses = np.asarray(beam_poses_xyt, float)
     if np.any(poses != 0.0):
-        i0 = _nominal_beam(n_half, float(cell_m), n_beams, round(az0, 12), round(daz, 12))
+        # each cell moved into the frame of the beam that saw it (one fixed-point step)
+        i0 = table.nearest(table.row_of(bearing))
         px, py = poses[:, 0].astype(np.float32), poses[:, 1].astype(np.float32)
         ct, st = np.cos(poses[:, 2]).astype(np.float32), np.sin(poses[:, 2]).astype(np.float32)
         dx = x - px[i0]
         dy = y - py[i0]
         c, s = ct[i0], st[i0]
         r, bearing = cv2.cartToPolar(c * dx + s * dy, c * dy - s * dx)
-    rows, j0 = _extended_polar(power, az0, daz, full_turn)
-    map_y = (bearing - np.float32(az0)) * np.float32(1.0 / daz) - np.float32(j0)
-    if height_m > 0.0:
-        r_slant = cv2.magnitude(r, np.full_like(r, np.float32(height_m)))
-        map_x = r_slant * np.float32(1.0 / range_per_bin_m)
-    else:
-        map_x = r * np.float32(1.0 / range_per_bin_m)
-    grid = cv2.remap(rows, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+    map_y = table.row_of(bearing)
+    r_read = cv2.magnitude(r, np.full_like(r, np.float32(height_m))) if height_m > 0.0 else r
+    map_x = (r_read - np.float32(range_offset_m)) * np.float32(1.0 / range_per_bin_m)
+    grid = cv2.remap(table.rows(power), map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                      borderValue=0.0)
-    grid[r > range_max_m] = 0.0
+    grid[(r_cell > range_max_m) | (r < range_min_m)] = 0.0  # a disk of the grid; blanking at acquisition
     origin = -n_half * cell_m
     return grid, (origin, origin)

@@ -20,12 +20,13 @@ class TurnBuffer:
         """Add one beam; return the turns it completed (none, one, or two)."""
         done: list[Turn] = []
         if self._beams and beam.turn != self._beams[-1][1].turn:
-            done.append(self._take())
+            done.append(self.take())
         self._beams.append((t_ns, beam))
         if beam.index == beam.config.beams_per_turn - 1:
-            done.append(self._take())
+            done.append(self.take())
         return done
 
-    def _take(self) -> Turn:
+    def take(self) -> Turn:
+        """The beams collected so far (a partial turn), emptying the buffer."""
         beams, self._beams = self._beams, []
         return beams

@@ -9,8 +9,9 @@ antenna turn is held in memory.
 Beam timing: beam ``j`` of turn ``k`` is acquired during one modulation period centred at
 ``t = start + (k B + j + 1/2) / (B f_rot)`` (integer ns) with the antenna at
 ``azimuth = 2 pi (j + 1/2) / B`` in the vehicle frame (counter-clockwise rotation, 0 =
-heading). Each beam is computed at the vehicle pose and velocity of its own time, so a
-moving radar sees the scene distorted (a straight wall becomes a trochoid) and every
+heading; ``RadarParams.clockwise`` and ``start_azimuth_rad`` give a clockwise antenna, like
+the Navtech's, and a turn that starts anywhere). Each beam is computed at the vehicle pose
+and velocity of its own time, so a moving radar sees the scene distorted (a straight wall becomes a trochoid) and every
 static echo carries the vehicle's Doppler V = -v . u (u the line of sight).
 
 Work per turn (vectorised; :mod:`impala_radar.sim.spectra` for the equations): the static
@@ -50,9 +51,12 @@ def beam_times_ns(start_t_ns: int, turn: int, config: RadarConfig) -> np.ndarray
     return int(start_t_ns) + np.rint(k * (1e9 / (config.rotation_hz * n))).astype(np.int64)
 
 
-def beam_azimuths_rad(config: RadarConfig) -> np.ndarray:
-    """Antenna azimuth of each beam in the vehicle frame (CCW from the heading)."""
-    return 2.0 * np.pi * (np.arange(config.beams_per_turn) + 0.5) / config.beams_per_turn
+def beam_azimuths_rad(config: RadarConfig, params: RadarParams = DEFAULT_PARAMS) -> np.ndarray:
+    """Antenna azimuth of each beam in the vehicle frame (CCW from the heading, in [0, 2 pi)):
+    beam j is centred half a step after ``params.start_azimuth_rad`` + j steps, the steps
+    counter-clockwise, or clockwise with ``params.clockwise``."""
+    step = 2.0 * np.pi / config.beams_per_turn * (-1.0 if params.clockwise else 1.0)
+    return np.mod(params.start_azimuth_rad + step * (np.arange(config.beams_per_turn) + 0.5), 2.0 * np.pi)
 
 
 def _bearing_window(idx, sorted_bearing, mid, half):
@@ -78,7 +82,7 @@ class RadarSimulator:
         self.world, self.config, self.params = world, config, params
         self.synth = Synthesizer(config, params)
         self.block_beams = block_beams
-        self.azimuth_rad = beam_azimuths_rad(config)
+        self.azimuth_rad = beam_azimuths_rad(config, params)
         self._k_range = 4.0 * config.bandwidth_hz * config.modulation_hz / SPEED_OF_LIGHT_MPS
         self._cut_rad = params.cut_azimuth_rad(config)
 

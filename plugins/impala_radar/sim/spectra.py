@@ -90,6 +90,8 @@ class RadarParams:
     window: str = "hann"  # "hann" or "rect"
     thermal_noise: bool = True
     cull_below_noise_db: float = 30.0  # drop echoes this far below the noise per bin
+    clockwise: bool = False  # sense of the antenna's rotation seen from above (Navtech: clockwise)
+    start_azimuth_rad: float = 0.0  # azimuth where each turn starts (vehicle frame, CCW from the heading)
 
     def antenna_gain(self, config: RadarConfig) -> float:
         """Antenna gain G ~ 26 000 / (theta_az theta_el in degrees) (65 % efficiency)."""
