@@ -137,7 +137,9 @@ class RSlamCore:
                 return grid
             k = int(self.cfg.db_floor_quantile * (sub.size - 1))
             floor = float(np.partition(sub, k)[k])
-        a = cv2.log(np.maximum(p, np.float32(floor)) * np.float32(1.0 / floor))
+        # in the log domain (a subnormal floor would overflow p / floor in float32)
+        a = cv2.log(np.maximum(p, np.float32(floor)))
+        a -= np.float32(math.log(floor))
         a *= np.float32(10.0 / math.log(10.0))
         a[~(p > 0)] = 0.0
         return Grid(a, grid.cell_m, grid.origin_x_m, grid.origin_y_m, grid.frame, grid.pose)

@@ -41,8 +41,8 @@ def bootstrap_speed(first: list[tuple[int, RadarBeam]], second: list[tuple[int, 
     window = cv2.createHanningWindow(images[0].shape[::-1], cv2.CV_64F)
     (dx, _), response = cv2.phaseCorrelate(images[0], images[1], window)
     dt_s = (mids[1] - mids[0]) * 1e-9
-    if response < 0.05 or dt_s <= 0:
-        return 0.0
+    if not (np.isfinite(dx) and np.isfinite(response) and response >= 0.05 and dt_s > 0):
+        return 0.0  # no clear peak (a silent or featureless scene): start from rest
     return float(-dx * cell_m / dt_s)  # static echoes move back (-x) as the vehicle moves forward
 
 
