@@ -6,7 +6,8 @@ Simulated Beynes mission (radar.Simulator) -> radar.PanoramicBuilder -> radar.Sp
 -> slam.RSlam -> eval.TrajectoryEvaluator, with slam.DeadReckoning as the baseline; ms per
 turn of R-SLAM (correlation + update) and of the processing chain (every component but
 the simulator), ATE RMSE and final drift beside the baseline's; then the Oxford scan-pair
-errors. ``--synthetic`` replaces the radar simulator by impala_slam.synthetic's point world.
+errors of graphs/oxford.yaml on the real sample (imported with ``impala-flow import oxford``).
+``--synthetic`` replaces the radar simulator by impala_slam.synthetic's point world.
 The last line is one JSON object with unit-named keys. Targets: R-SLAM <= 100 ms/turn,
 ATE <= 1.0 m, drift <= 0.5 %.
 """
@@ -145,19 +146,37 @@ def run_mission(turns: int, synthetic: bool, report: str) -> dict:
     }
 
 
-def run_oxford() -> dict:
-    sys.path.insert(0, str(ROOT))  # the data lookup and the scan-pair evaluation live beside their tests
+def run_oxford(report: str) -> dict:
+    """The real Oxford scans through the user's path: ``impala-flow import oxford`` then
+    ``graphs/oxford.yaml``; the per-pair errors come from the graph's recorded poses (the
+    evaluator's metrics.json, which the tests check against the ground-truth file)."""
+    sys.path.insert(0, str(ROOT))  # the data lookup lives beside the tests
+    from impala_flow.cli import main as cli
     from tests.datasets import find_oxford_sample
-    from tests.slam.oxford_pairs import register_oxford
 
     folder = find_oxford_sample()
     if folder is None:
         return {}
-
-    r = register_oxford(folder, cell_m=0.1)
-    return {"oxford_trans_err_m": r.mean_trans_err_m, "oxford_rot_err_deg": r.mean_rot_err_deg,
-            "oxford_trans_err_max_m": float(r.trans_err_m.max()), "oxford_ms_per_scan": r.ms_per_scan,
-            "oxford_pairs": len(r.trans_err_m)}
+    out = Path(report + "-oxford")
+    out.mkdir(parents=True, exist_ok=True)
+    mission = out / "oxford-sample.mcap"
+    cli(["import", "oxford", str(folder), "-o", str(mission), "--no-progress"])
+    t0 = time.perf_counter()
+    cli(["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
+         "--no-progress", "--summary-json", str(out / "summary.json")])
+    wall = time.perf_counter() - t0
+    m = json.loads((out / "metrics.json").read_text())
+    pairs = m.get("pairs", [])
+    for k, p in enumerate(pairs, 1):
+        print(f"  oxford pair {k:2d}: {100 * p['trans_err_m']:5.1f} cm {p['rot_err_deg']:6.3f} deg "
+              f"(along {100 * p['along_err_m']:+5.1f} cm, lateral {100 * p['lateral_err_m']:+5.1f} cm, "
+              f"step {p['true_step_m']:.2f} m)")
+    return {"oxford_trans_err_m": m["pair_trans_err_mean_m"], "oxford_rot_err_deg": m["pair_rot_err_mean_deg"],
+            "oxford_trans_err_max_m": m["pair_trans_err_max_m"], "oxford_rot_err_max_deg": m["pair_rot_err_max_deg"],
+            "oxford_along_err_mean_m": m["pair_along_err_mean_m"],
+            "oxford_lateral_err_mean_m": m["pair_lateral_err_mean_m"],
+            "oxford_cv_baseline_trans_err_m": m.get("baseline_pair_trans_err_mean_m"),
+            "oxford_ms_per_scan": 1e3 * wall / max(1, len(pairs) + 1), "oxford_pairs": len(pairs)}
 
 
 def main() -> None:
@@ -171,7 +190,7 @@ def main() -> None:
     for k, v in out.items():
         print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
     if not args.no_oxford:
-        ox = run_oxford()
+        ox = run_oxford(args.report)
         for k, v in ox.items():
             print(f"{k:28s} {v:.4f}" if isinstance(v, float) else f"{k:28s} {v}")
         out.update(ox)

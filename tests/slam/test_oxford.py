@@ -1,17 +1,106 @@
-"""R-SLAM map matching on the real Oxford Radar RobotCar scans vs gt/radar_odometry.csv."""
+"""R-SLAM on the real Oxford Radar RobotCar scans, through the command line a user runs:
+``impala-flow import oxford`` then ``impala-flow run graphs/oxford.yaml`` (issue 9 items 2-3).
+
+The estimate is read back from the graph's recording with the bare mcap library and the
+Foxglove PoseInFrame schema (its ``/foxglove/slam/pose`` mirror), never with impala-flow's
+codec; the truth is ``gt/radar_odometry.csv`` parsed here with the csv module (Oxford's
+frame: x forward, y right, yaw clockwise; each row the pose of the source scan in the
+destination scan's frame, stamped at the middle of the source scan).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
 
 import cv2
+import numpy as np
+import pytest
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from mcap.reader import make_reader
+
+from impala_flow.cli import main
 
 from ..datasets import oxford_sample_or_skip
-from .oxford_pairs import register_oxford
 
 cv2.setNumThreads(1)
+GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "oxford.yaml"
 
 
-def test_scan_to_map_registration_on_oxford():
-    r = register_oxford(oxford_sample_or_skip(), cell_m=0.1)
-    assert len(r.trans_err_m) == 10  # 11 scans, 10 consecutive pairs
-    # measured: 8.5 cm and 0.065 deg mean (Cen & Newman: 5.2 cm, 0.09 deg; target 10 cm, 0.2 deg)
-    assert r.mean_trans_err_m < 0.10
-    assert r.mean_rot_err_deg < 0.2
-    assert r.trans_err_m.max() < 0.2
+def _truth_rows(folder: Path) -> dict[int, tuple[int, float, float, float]]:
+    """source_timestamp (ns) -> (destination_timestamp ns, x, y, yaw) in the project's frame
+    (x forward, y left, yaw counter-clockwise)."""
+    out = {}
+    with open(folder / "gt" / "radar_odometry.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            out[int(row["source_timestamp"]) * 1000] = (int(row["destination_timestamp"]) * 1000, float(row["x"]),
+                                                        -float(row["y"]), -float(row["yaw"]))
+    return out
+
+
+def _recorded_poses(path: Path) -> dict[int, tuple[float, float, float]]:
+    poses = {}
+    with open(path, "rb") as f:
+        for _, _, message in make_reader(f).iter_messages(topics=["/foxglove/slam/pose"]):
+            p = PoseInFrame()
+            p.ParseFromString(message.data)
+            q = p.pose.orientation
+            poses[message.log_time] = (p.pose.position.x, p.pose.position.y,
+                                       2.0 * math.atan2(q.z, q.w))  # a yaw-only quaternion
+    return poses
+
+
+@pytest.fixture(scope="module")
+def oxford_run(tmp_path_factory):
+    folder = oxford_sample_or_skip()
+    tmp = tmp_path_factory.mktemp("oxford")
+    mission = tmp / "oxford-sample.mcap"
+    assert main(["import", "oxford", str(folder), "-o", str(mission), "--no-progress"]) == 0
+    out = tmp / "out"
+    assert main(["run", str(GRAPH), "--var", f"mission={mission}", "--var", f"out={out}", "--no-progress"]) == 0
+    return folder, out
+
+
+def test_the_graph_registers_every_consecutive_pair_within_the_required_error(oxford_run):
+    folder, out = oxford_run
+    truth = _truth_rows(folder)
+    est = _recorded_poses(out / "oxford.mcap")
+    assert len(est) == 11  # one pose per scan, stamped at the middle of the scan like the truth
+    trans, rot = [], []
+    for t, (t_dst, x, y, yaw) in truth.items():
+        if t not in est or t_dst not in est:
+            continue
+        (x0, y0, th0), (x1, y1, th1) = est[t_dst], est[t]
+        c, s = math.cos(th0), math.sin(th0)
+        dx, dy = x1 - x0, y1 - y0
+        rel = (c * dx + s * dy, -s * dx + c * dy, th1 - th0)
+        trans.append(math.hypot(rel[0] - x, rel[1] - y))
+        rot.append(abs(math.degrees(math.remainder(rel[2] - yaw, 2 * math.pi))))
+    assert len(trans) == 10  # 11 scans, 10 consecutive pairs
+    print(f"\nOxford pairs: mean {100 * np.mean(trans):.1f} cm / {np.mean(rot):.3f} deg, "
+          f"max {100 * np.max(trans):.1f} cm / {np.max(rot):.3f} deg")
+    # required by the issue: 10 cm and 0.2 deg (Cen & Newman report 5.2 cm and 0.09 deg)
+    assert np.mean(trans) <= 0.10 and np.mean(rot) <= 0.2
+    assert np.max(trans) < 0.2
+    # the evaluator's report says the same, pair by pair
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["n_pairs"] == 10
+    assert metrics["pair_trans_err_mean_m"] == pytest.approx(np.mean(trans), abs=1e-6)
+    assert metrics["pair_rot_err_mean_deg"] == pytest.approx(np.mean(rot), abs=1e-6)
+    assert sorted(p["trans_err_m"] for p in metrics["pairs"]) == pytest.approx(sorted(trans), abs=1e-6)
+
+
+def test_registration_beats_the_constant_velocity_prediction(oxford_run):
+    metrics = json.loads((oxford_run[1] / "metrics.json").read_text())
+    # the motion model alone (the baseline) is the prediction R-SLAM starts from
+    assert metrics["pair_trans_err_mean_m"] < 0.5 * metrics["baseline_pair_trans_err_mean_m"]
+    assert metrics["ate_rmse_m"] < metrics["baseline_ate_rmse_m"]
+
+
+def test_the_report_draws_the_pairs(oxford_run):
+    out = oxford_run[1]
+    for name in ("pair_errors.png", "error_vs_distance.png", "trajectory_map.png", "map.png"):
+        img = cv2.imread(str(out / name))
+        assert img is not None and img.shape[0] > 300 and img.std() > 5.0, name
