@@ -174,3 +174,39 @@ def test_partial_first_and_last_turns():
         assert not np.any(first.data.data[i - 10:i + 11, j - 10:j + 11])
     images, summary = _images(cut, traj, min_turn_fraction=0.3)
     assert summary["turns"] == 3 and summary["partial_turns"] == 2 and "dropped_turns" not in summary
+
+
+def _pairs(beams):
+    from impala_radar.frontend.pairer import FuzzyPairer
+
+    src = ScriptedSource("src", [(t, "beams", b) for t, b in beams])
+    dets = CollectingSink("dets")
+    pairer = FuzzyPairer("pairer")
+    run_components(src, pairer, dets, connections=["src.beams -> pairer.beams", "pairer.detections -> dets.x"])
+    return dets.values(), pairer.summary()
+
+
+def test_pairer_sees_the_same_targets_either_way_and_keeps_a_partial_last_turn():
+    found = {}
+    for clockwise in (False, True):
+        _, beams = _beams(clockwise=clockwise, turns=1.5)
+        batches, summary = _pairs(beams)
+        assert len(batches) == 2 and summary["partial_turns"] == 1
+        d = batches[0]
+        # the strongest detection near each target: (azimuth deg, range m)
+        truth_az = np.degrees(np.mod(np.arctan2(POINTS[:, 1], POINTS[:, 0]), 2 * np.pi))
+        truth_r = np.hypot(*POINTS.T)  # the points are at the radar's height
+        az = np.degrees(np.mod(d.azimuth_rad, 2 * np.pi))
+        picks = []
+        for ta, tr in zip(truth_az, truth_r, strict=True):
+            near = np.flatnonzero((np.abs(az - ta) < 3.0) & (np.abs(d.range_m - tr) < 1.0))
+            assert near.size, (clockwise, ta, tr)
+            k = near[np.argmax(d.amplitude[near])]
+            picks.append((az[k], d.range_m[k]))
+            assert abs(az[k] - ta) <= 1.0 and abs(d.range_m[k] - tr) <= IMPALA.range_resolution_m / 2
+        found[clockwise] = np.array(picks)
+        # the half turn: only what its 180 beams swept (counter-clockwise 0-180 deg, clockwise 180-360)
+        half = batches[1]
+        az = np.degrees(np.mod(half.azimuth_rad, 2 * np.pi))
+        assert len(half.range_m) > 0 and np.all((az < 181) if not clockwise else (az > 179))
+    assert np.allclose(found[False], found[True], atol=1e-6)  # the same beams, the same peaks

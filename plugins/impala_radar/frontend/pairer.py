@@ -60,11 +60,19 @@ class FuzzyPairer(Component):
     def start(self) -> None:
         self._turn = TurnBuffer()
         self.turns = 0
+        self.partial_turns = 0
         self.n_detections = 0
         self.last_prior_mps = float("nan")
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
+            self._flush(buf)
+
+    def flush(self, t: int) -> None:
+        """The beams are exhausted: the partial last turn's detections are emitted too."""
+        buf = self._turn.take()
+        if buf:
+            self.partial_turns += 1
             self._flush(buf)
 
     def _flush(self, buf: list[tuple[int, RadarBeam]]) -> None:
@@ -98,10 +106,13 @@ class FuzzyPairer(Component):
         from .pairing import detect_peaks
 
         p = detect_peaks(up, self.pfa, self.train, self.guard, self.cfar,
-                         int(config.range_min_m / config.range_per_bin_m))
+                         max(0, int(config.bin_of_range(config.range_min_m))))
         nan = np.full(len(p), np.nan)
         return RadarDetections(turn, t_ns[p.beam], p.beam, azimuth[p.beam],
-                               p.bin * config.range_per_bin_m, nan, p.power, nan)
+                               np.asarray(config.range_of_bin_m(p.bin), float), nan, p.power, nan)
 
     def summary(self) -> dict:
-        return {"turns": self.turns, "detections": self.n_detections}
+        out = {"turns": self.turns, "detections": self.n_detections}
+        if self.partial_turns:
+            out["partial_turns"] = self.partial_turns
+        return out
