@@ -1,8 +1,9 @@
-"""Where the tests find the real Oxford Radar RobotCar sample (never copied into the repo).
+"""Where the tests find the real datasets (never copied into the repo).
 
-``$IMPALA_FLOW_TEST_DATA`` (the data root or the sample folder itself), else
-``../shared/data/oxford-radar-robotcar-sample`` beside the repository. Tests that need it
-use :func:`oxford_sample_or_skip` and skip cleanly when it is absent.
+``$IMPALA_FLOW_TEST_DATA`` (the data root or a dataset folder itself), else
+``../shared/data/<folder>`` beside the repository. Tests that need a dataset use
+:func:`oxford_sample_or_skip`, :func:`boreas_frame_or_skip` or :func:`radiate_head_or_skip`
+and skip cleanly when it is absent.
 """
 
 from __future__ import annotations
@@ -13,22 +14,49 @@ from pathlib import Path
 import pytest
 
 SAMPLE = "oxford-radar-robotcar-sample"
+BOREAS = "boreas-frame"
+RADIATE = "radiate-fog-6-0-head"
 
 
-def find_oxford_sample() -> Path | None:
+def _find(name: str, marker: str) -> Path | None:
     candidates = []
     env = os.environ.get("IMPALA_FLOW_TEST_DATA")
     if env:
-        candidates += [Path(env) / SAMPLE, Path(env)]
-    candidates.append(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / SAMPLE)
+        candidates += [Path(env) / name, Path(env)]
+    candidates.append(Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / name)
     for c in candidates:
-        if (c / "radar").is_dir():
+        # the env folder itself counts only when it is this dataset (an Oxford copy: radar/ and gt/)
+        itself = c == Path(env or "") and c.name != name
+        if (c / marker).is_dir() and (not itself or (name == SAMPLE and (c / "gt").is_dir())):
             return c.resolve()
     return None
 
 
-def oxford_sample_or_skip() -> Path:
-    folder = find_oxford_sample()
+def find_oxford_sample() -> Path | None:
+    return _find(SAMPLE, "radar")
+
+
+def find_boreas_frame() -> Path | None:
+    return _find(BOREAS, "radar")
+
+
+def find_radiate_head() -> Path | None:
+    return _find(RADIATE, "Navtech_Polar")
+
+
+def _or_skip(folder: Path | None, what: str) -> Path:
     if folder is None:
-        pytest.skip("Oxford Radar RobotCar sample not found (set IMPALA_FLOW_TEST_DATA)")
+        pytest.skip(f"{what} not found (set IMPALA_FLOW_TEST_DATA)")
     return folder
+
+
+def oxford_sample_or_skip() -> Path:
+    return _or_skip(find_oxford_sample(), "Oxford Radar RobotCar sample")
+
+
+def boreas_frame_or_skip() -> Path:
+    return _or_skip(find_boreas_frame(), "Boreas frame")
+
+
+def radiate_head_or_skip() -> Path:
+    return _or_skip(find_radiate_head(), "RADIATE fog_6_0 head")

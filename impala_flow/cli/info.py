@@ -25,6 +25,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+#: metadata records a source writes about what it read (e.g. an imported dataset), printed in full
+SOURCE_METADATA = "impala_flow.source"
+
+
 def codecs() -> CodecRegistry:
     """Standard types plus what the installed plugins register (standard only on failure)."""
     try:
@@ -62,7 +66,7 @@ def format_info(info: RecordingInfo, metadata: bool = False) -> str:
         lines.append(f"corrupt chunks: {info.corrupt_chunks} (skipped)")
     lines += [f"problem: {p}" for p in info.problems]
     for name, rec in info.metadata.items():
-        if metadata:
+        if metadata or name.startswith(SOURCE_METADATA):  # what a source read: short, always in full
             lines.append(f"metadata {name}:")
             lines += [f"  {k}: {v}" for k, v in rec.items()]
         else:

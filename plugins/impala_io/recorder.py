@@ -84,7 +84,20 @@ class Recorder(Component):
     def stop(self) -> None:
         writer = getattr(self, "writer", None)
         if writer is not None:
+            self._source_metadata(writer)
             writer.close()
+
+    def _source_metadata(self, writer: MissionWriter) -> None:
+        """Each recorded producer that describes what it read (``source_metadata() -> dict``,
+        e.g. a dataset reader: sensor, turns, rows dropped) gets a metadata record
+        ``impala_flow.source.<component>``, written at the end, when its counts are known."""
+        owners = {src.owner.name: src.owner for port in self.inputs.values() for src in port.sources}
+        for name, comp in sorted(owners.items()):
+            describe = getattr(comp, "source_metadata", None)
+            if callable(describe):
+                meta = describe()
+                if meta:
+                    writer.add_metadata(f"impala_flow.source.{name}", meta)
 
     def summary(self) -> dict[str, Any]:
         n = sum(getattr(self, "recorded", {}).values())

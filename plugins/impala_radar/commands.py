@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
-from impala_flow.cli import EXIT_USAGE, CommandError
+from impala_flow.cli import EXIT_FAILED, EXIT_USAGE, CommandError
 from impala_flow.cli._common import open_session, record_source
 
-from .sources import OXFORD_TOPICS, SIM_TOPICS, OxfordScans, Simulator
+from .sources import DATASET_SOURCES, DATASET_TOPICS, SIM_TOPICS, Simulator
 
 __all__ = ["add_commands"]
 
@@ -51,17 +52,35 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser(
-        "import", help="import recorded real radar data into an MCAP mission file",
+        "import", help="import recorded real radar data (Oxford, Boreas, RADIATE) into an MCAP mission file",
         description="Turn a dataset folder into a mission file with the same beam messages the simulator "
-        "produces (power only, no Doppler; per-beam timestamps and azimuths from the files) and a truth "
-        "pose stream. Formats: oxford (Navtech polar PNGs of the Oxford Radar RobotCar dataset, also "
-        "MulRan and Boreas, with gt/radar_odometry.csv).",
-        epilog="example:\n  impala-flow import oxford data/oxford-radar-robotcar-sample -o oxford.mcap",
+        "produces (power only, no Doppler), each with its own timestamp and azimuth (counter-clockwise, "
+        "0 = forward) in acquisition order, and the dataset's truth poses on truth/pose. The sensor's "
+        "numbers (bins, range per bin, range of bin 0, beams per turn, rotation rate) come from the "
+        "dataset and travel with every beam. Formats: oxford (Oxford Radar RobotCar: radar/<us>.png, "
+        "gt/radar_odometry.csv), boreas (Boreas: radar/<us>.png, applanix/radar_poses.csv), radiate "
+        "(RADIATE: Navtech_Polar/, Navtech_Polar.txt, GPS_IMU_Twist/). Bad input stops the import with "
+        "one line naming the file and the row or scan, and leaves no output file.",
+        epilog="examples:\n  impala-flow import oxford data/oxford-radar-robotcar-sample -o oxford.mcap\n"
+        "  impala-flow import boreas data/boreas-2021-09-02-11-42 -o boreas.mcap\n"
+        "  impala-flow import radiate data/fog_6_0 -o fog.mcap",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("format", choices=("oxford",), help="dataset format")
-    p.add_argument("folder", help="dataset folder (holding radar/ and gt/)")
+    p.add_argument("format", choices=tuple(DATASET_SOURCES), help="dataset format")
+    p.add_argument("folder", help="dataset folder (oxford/boreas: holding radar/; radiate: holding Navtech_Polar/)")
     p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap)")
+    p.add_argument("--range-resolution-m", type=float, default=None, metavar="M",
+                   help="range per bin (default: oxford 0.0432; boreas by date, 0.0596 before 2021-09-21 and "
+                   "0.04381 after; radiate 0.17361)")
+    p.add_argument("--azimuth-offset-deg", type=float, default=None, metavar="DEG",
+                   help="constant added to every azimuth, counter-clockwise positive (default: the format's, "
+                   "see 'impala-flow plugins radar')")
+    p.add_argument("--db-per-count", type=float, default=0.5, metavar="DB",
+                   help="log scale of the pixels: beams carry linear power 10^(count x DB / 10) (default 0.5)")
+    p.add_argument("--range-offset-bins", type=float, default=0.5, metavar="BINS",
+                   help="range of bin 0 in bins (default 0.5: bin centres, the Navtech SDKs)")
+    p.add_argument("--skip-bad-scans", action="store_true",
+                   help="skip unreadable scans (counted and reported with their reason) instead of failing")
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_import)
@@ -83,11 +102,52 @@ def _simulate(args: argparse.Namespace) -> int:
                          progress=False if args.no_progress else None)
 
 
+def _dataset_error(e: BaseException) -> BaseException | None:
+    """The DatasetError behind a recording failure (component error chain), if any."""
+    from .datasets import DatasetError
+
+    while e is not None:
+        if isinstance(e, DatasetError):
+            return e
+        e = e.__cause__
+    return None
+
+
 def _import(args: argparse.Namespace) -> int:
+    from .datasets import DatasetError
+
     session = open_session()
-    folder = Path(args.folder)
-    if not (folder / "radar").is_dir():
-        raise CommandError(f"{folder}: no radar/ folder of Navtech PNG scans", EXIT_USAGE)
-    src = OxfordScans("oxford", folder=str(folder))
-    return record_source(session, src, args.output, OXFORD_TOPICS, args.compression,
-                         progress=False if args.no_progress else None)
+    params: dict = {"folder": str(Path(args.folder)), "range_offset_bins": args.range_offset_bins,
+                    "skip_bad_scans": args.skip_bad_scans}
+    if args.azimuth_offset_deg is not None:
+        params["azimuth_offset_deg"] = args.azimuth_offset_deg
+    if not args.db_per_count > 0:
+        raise CommandError(f"--db-per-count {args.db_per_count}: must be > 0", EXIT_USAGE)
+    params["db_per_count"] = args.db_per_count
+    if args.range_resolution_m is not None:
+        if not args.range_resolution_m > 0:
+            raise CommandError(f"--range-resolution-m {args.range_resolution_m}: must be > 0", EXIT_USAGE)
+        params["range_resolution_m"] = args.range_resolution_m
+    src = DATASET_SOURCES[args.format](args.format, **params)
+    try:
+        src.open()  # the folder and its first scan, before anything is written
+    except DatasetError as e:
+        raise CommandError(str(e), EXIT_FAILED) from None
+    out = Path(args.output)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.part")  # renamed on success only
+    try:
+        code = record_source(session, src, str(tmp), DATASET_TOPICS, args.compression,
+                             progress=False if args.no_progress else None, quiet=True)
+    except CommandError as e:
+        tmp.unlink(missing_ok=True)
+        bad = _dataset_error(e)
+        raise CommandError(str(bad) if bad is not None else str(e), e.code) from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    if code != 0:
+        tmp.unlink(missing_ok=True)
+        return code
+    os.replace(tmp, out)
+    print("\n".join([f"imported:     {out}", *src.report.lines()]))
+    return 0

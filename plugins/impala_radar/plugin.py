@@ -9,10 +9,12 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
-    from .sources import OxfordScans, Simulator
+    from .sources import BoreasScans, OxfordScans, RadiateScans, Simulator
 
     registry.add_component(Simulator)
     registry.add_component(OxfordScans)
+    registry.add_component(BoreasScans)
+    registry.add_component(RadiateScans)
     from .frontend import EgoVelocity, FuzzyPairer, PanoramicBuilder, SpeckleFilter
     from .frontend.report import FrontendReport
 

@@ -4,10 +4,12 @@ bare mcap library) that replays the same beams as the PNG reader."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from mcap.reader import make_reader
 
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
+from impala_flow.msgs import wrap_angle
 from impala_radar.navtech import read_navtech_png
 
 from ..datasets import oxford_sample_or_skip
@@ -33,11 +35,44 @@ def test_import_oxford_writes_every_valid_beam_and_the_truth(tmp_path, capsys):
     assert times[: int(first.valid.sum())] == first.timestamps_ns[first.valid].tolist()
     with MissionReader(out) as r:  # the project's reader decodes the same values
         beams = [m.data for m in r.messages(["radar/beams"])]
-    assert np.array_equal(beams[0].up, first.power[np.flatnonzero(first.valid)[0]])
+    # every beam of every scan in acquisition order; its power the linear power of the PNG's
+    # half-dB counts, P = 10^(count * 0.5 / 10) (count = pixel = 255 x the reader's value)
+    rows = [(k, i) for k, s in enumerate(scans) for i in np.flatnonzero(s.valid).tolist()]
+    assert [(b.turn, b.index) for b in beams] == rows
+    assert all(np.allclose(b.up, 10.0 ** (np.rint(scans[k].power[i] * 255) * 0.05), rtol=1e-6)
+               for b, (k, i) in zip(beams, rows, strict=True))
     assert beams[0].down.size == 0
+    # the measured defaults (impala_radar.datasets.oxford): 4.38 cm bins, centred
+    assert beams[0].config.range_offset_m == pytest.approx(0.5 * 0.0438)
+
+
+def test_import_prints_what_it_read(tmp_path, capsys):
+    folder = oxford_sample_or_skip()
+    out = tmp_path / "oxford.mcap"
+    assert main(["import", "oxford", str(folder), "-o", str(out), "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "dataset:      oxford" in text
+    assert "3768 bins x 0.04380 m = 165.0 m (bin 0 at 0.0219 m)" in text  # 3768 * 0.0438 = 165.04
+    assert "turns:        11" in text and "beams:        4400" in text
+    assert "rows dropped: 0" in text and "truth poses:  12" in text
+    assert [p.name for p in tmp_path.iterdir()] == ["oxford.mcap"]  # no temporary file left
+
+
+def test_import_range_resolution_and_azimuth_offset_options(tmp_path):
+    folder = oxford_sample_or_skip()
+    out = tmp_path / "oxford.mcap"
+    assert main(["import", "oxford", str(folder), "-o", str(out), "--no-progress",
+                 "--range-resolution-m", "0.0438", "--azimuth-offset-deg", "-2"]) == 0
+    first = read_navtech_png(sorted((folder / "radar").glob("*.png"))[0])
+    with MissionReader(out) as r:
+        beam = next(iter(r.messages(["radar/beams"]))).data
+    assert beam.config.range_per_bin_m == pytest.approx(0.0438, rel=1e-12)
+    assert beam.config.range_offset_m == pytest.approx(0.0219, rel=1e-12)
+    assert beam.azimuth_rad == pytest.approx(float(wrap_angle(np.radians(-2.0) - first.azimuth_rad[0])))
 
 
 def test_import_rejects_a_folder_without_scans(tmp_path, capsys):
-    assert main(["import", "oxford", str(tmp_path), "-o", str(tmp_path / "x.mcap")]) == 2
+    assert main(["import", "oxford", str(tmp_path), "-o", str(tmp_path / "x.mcap")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"impala-flow import: error: {tmp_path}: no radar/ folder of Navtech PNG scans"]
+    assert not (tmp_path / "x.mcap").exists()

@@ -35,9 +35,36 @@ def scan_paths(sample):
 
 
 def test_config_range_bin():
-    assert NAVTECH_CTS350X.range_per_bin_m == pytest.approx(0.0432, rel=1e-12)
+    # 4.38 cm per bin: the value measured on the sample (see impala_radar.datasets.oxford)
+    assert NAVTECH_CTS350X.range_per_bin_m == pytest.approx(0.0438, rel=1e-12)
     assert NAVTECH_CTS350X.doppler is False and NAVTECH_CTS350X.beams_per_turn == 400
     assert NAVTECH_CTS350X.rotation_hz == 4.0
+    # the Oxford SDK puts bin k at its centre: (k + 0.5) * resolution
+    assert NAVTECH_CTS350X.range_of_bin_m(0) == pytest.approx(0.0219, rel=1e-12)
+    assert NAVTECH_CTS350X.range_of_bin_m(100) == pytest.approx(100.5 * 0.0438, rel=1e-12)
+    assert NAVTECH_CTS350X.bin_of_range(100.5 * 0.0438) == pytest.approx(100.0, rel=1e-12)
+
+
+def test_reader_geometry_parameters(sample):
+    """range_resolution_m, range_offset_bins and azimuth_offset_deg reach every beam's config
+    and azimuth, with the documented formulas."""
+    from impala_radar.datasets.oxford import OxfordDataset
+
+    pngs = sorted((sample / "radar").glob("*.png"))
+    raw = read_navtech_png(pngs[0])
+    base = OxfordDataset(sample, azimuth_offset_deg=0.0).read_scan(0)
+    ds = OxfordDataset(sample, range_resolution_m=0.0438, range_offset_bins=0.0, azimuth_offset_deg=1.5)
+    assert ds.config.range_per_bin_m == pytest.approx(0.0438, rel=1e-12)
+    assert ds.config.range_offset_m == 0.0 and ds.config.n_bins == 3779 - 11
+    assert ds.config.range_max_m == pytest.approx(3768 * 0.0438)
+    shifted = ds.read_scan(0)
+    expected = msgs.wrap_angle(np.radians(1.5) - raw.encoder * (2 * np.pi / 5600))
+    assert np.allclose(shifted.azimuth_rad, expected, atol=1e-12)
+    # a positive offset turns the scan counter-clockwise (to the left) by that angle
+    assert np.allclose(msgs.wrap_angle(shifted.azimuth_rad - base.azimuth_rad), np.radians(1.5), atol=1e-12)
+    # encoder counts increase: the CCW azimuth decreases over the turn (clockwise Navtech)
+    steps = msgs.wrap_angle(np.diff(base.azimuth_rad))
+    assert np.allclose(steps, -2 * np.pi / 400, atol=1e-9)
 
 
 def test_scan_timestamps_and_azimuths(scan_paths):
@@ -73,7 +100,12 @@ def test_scan_to_beams(scan_paths):
     t0, b0 = beams[0]
     assert isinstance(b0, msgs.RadarBeam) and b0.turn == 7 and b0.index == 0
     assert b0.down.dtype == np.float32 and b0.down.size == 0
-    assert np.array_equal(b0.up, scan.power[0]) and b0.config is NAVTECH_CTS350X
+    # linear power from the half-dB pixel counts: P = 10^(count * 0.5 / 10)
+    import cv2
+
+    counts = cv2.imread(str(scan_paths[1]), cv2.IMREAD_UNCHANGED)[0, 11:].astype(np.float64)
+    assert np.allclose(b0.up, 10.0 ** (counts * 0.05), rtol=1e-6) and b0.config is NAVTECH_CTS350X
+    assert b0.config.name == "navtech-cts350x-oxford"
     # clockwise encoder angle -> counter-clockwise beam azimuth
     assert b0.azimuth_rad == pytest.approx(-scan.azimuth_rad[0])
     assert beams[-1][1].azimuth_rad == pytest.approx(2 * np.pi - scan.azimuth_rad[-1])
@@ -143,6 +175,11 @@ def test_ground_truth_frame_matches_gps(sample):
 
 def test_iter_oxford_folder(sample):
     items = list(iter_oxford_folder(sample))
+    config = next(m for _, s, m in items if s == "beams").config
+    assert config.n_bins == 3768 and config.range_offset_m == pytest.approx(0.0219)
+    # rotation measured on the file times: the scans start about 0.25 s apart
+    starts = np.diff(sorted(int(p.stem) for p in (sample / "radar").glob("*.png")))
+    assert config.rotation_hz == pytest.approx(1e6 / np.median(starts), abs=1e-3)
     times = [t for t, _, _ in items]
     assert times == sorted(times)
     beams = [m for _, s, m in items if s == "beams"]

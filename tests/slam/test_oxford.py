@@ -68,11 +68,16 @@ def test_the_graph_registers_every_consecutive_pair_within_the_required_error(ox
     truth = _truth_rows(folder)
     est = _recorded_poses(out / "oxford.mcap")
     assert len(est) == 11  # one pose per scan, stamped at the middle of the scan like the truth
+
+    def at(t_ns):  # the estimate stamped at the truth's time (the CSV rounds it to the microsecond)
+        near = [t for t in est if abs(t - t_ns) <= 1000]
+        return est[near[0]] if near else None
+
     trans, rot = [], []
     for t, (t_dst, x, y, yaw) in truth.items():
-        if t not in est or t_dst not in est:
+        if at(t) is None or at(t_dst) is None:
             continue
-        (x0, y0, th0), (x1, y1, th1) = est[t_dst], est[t]
+        (x0, y0, th0), (x1, y1, th1) = at(t_dst), at(t)
         c, s = math.cos(th0), math.sin(th0)
         dx, dy = x1 - x0, y1 - y0
         rel = (c * dx + s * dy, -s * dx + c * dy, th1 - th0)
@@ -84,12 +89,13 @@ def test_the_graph_registers_every_consecutive_pair_within_the_required_error(ox
     # required by the issue: 10 cm and 0.2 deg (Cen & Newman report 5.2 cm and 0.09 deg)
     assert np.mean(trans) <= 0.10 and np.mean(rot) <= 0.2
     assert np.max(trans) < 0.2
-    # the evaluator's report says the same, pair by pair
+    # the evaluator's report says the same, pair by pair (it interpolates the truth at the exact
+    # estimate times, the CSV rounds them to the microsecond: 10 m/s x 0.5 us = 5 um)
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["n_pairs"] == 10
-    assert metrics["pair_trans_err_mean_m"] == pytest.approx(np.mean(trans), abs=1e-6)
-    assert metrics["pair_rot_err_mean_deg"] == pytest.approx(np.mean(rot), abs=1e-6)
-    assert sorted(p["trans_err_m"] for p in metrics["pairs"]) == pytest.approx(sorted(trans), abs=1e-6)
+    assert metrics["pair_trans_err_mean_m"] == pytest.approx(np.mean(trans), abs=2e-5)
+    assert metrics["pair_rot_err_mean_deg"] == pytest.approx(np.mean(rot), abs=1e-4)
+    assert sorted(p["trans_err_m"] for p in metrics["pairs"]) == pytest.approx(sorted(trans), abs=2e-5)
 
 
 def test_registration_beats_the_constant_velocity_prediction(oxford_run):

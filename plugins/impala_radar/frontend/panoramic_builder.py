@@ -22,28 +22,38 @@ __all__ = ["PanoramicBuilder", "bootstrap_speed"]
 
 
 def bootstrap_speed(first: list[tuple[int, RadarBeam]], second: list[tuple[int, RadarBeam]],
-                    normalise: bool = True, cell_m: float = 0.2, range_m: float = 40.0) -> float:
+                    normalise: bool = True, cell_m: float = 0.2, range_m: float = 40.0,
+                    blank_m: tuple[float, ...] = (2.0, 5.0, 10.0)) -> float:
     """Forward speed (m/s) between two turns from their uncorrected images: the scene moves
     back by the vehicle's displacement, found by phase correlation (cv2.phaseCorrelate,
     Hanning window) of the images in dB above each beam's floor, divided by the time
-    between the turns' middles. 0 when the correlation finds no clear peak."""
-    images, mids = [], []
+    between the turns' middles. Echoes that move with the vehicle (its body, the mounting,
+    near multipath) pull the peak to zero: the images are tried with the near range blanked
+    to each of ``blank_m`` and the clearest peak (highest response) wins (RADIATE's car
+    needs 5 m). 0 when no blanking gives a clear peak."""
+    polar, mids = [], []
     for buf in (first, second):
         t_ns = np.array([t for t, _ in buf], np.int64)
-        cfg = buf[0][1].config
         power = np.stack([b.up for _, b in buf]).astype(np.float32)
         power = normalise_beams(power) if normalise else power / max(float(np.median(power)), 1e-30)
-        db = 10.0 * np.log10(np.maximum(power, np.float32(1.0)))
-        grid, _ = scan_to_grid(db, [b.azimuth_rad for _, b in buf], np.zeros((len(buf), 3)), cfg.range_per_bin_m,
-                               cell_m, min(range_m, cfg.range_max_m), 0.0, cfg.range_offset_m)
-        images.append(grid.astype(np.float64))
+        polar.append((10.0 * np.log10(np.maximum(power, np.float32(1.0))), [b.azimuth_rad for _, b in buf],
+                      buf[0][1].config))
         mids.append(int(t_ns.min()) + (int(t_ns.max()) - int(t_ns.min())) // 2)
-    window = cv2.createHanningWindow(images[0].shape[::-1], cv2.CV_64F)
-    (dx, _), response = cv2.phaseCorrelate(images[0], images[1], window)
     dt_s = (mids[1] - mids[0]) * 1e-9
-    if not (np.isfinite(dx) and np.isfinite(response) and response >= 0.05 and dt_s > 0):
-        return 0.0  # no clear peak (a silent or featureless scene): start from rest
-    return float(-dx * cell_m / dt_s)  # static echoes move back (-x) as the vehicle moves forward
+    best_dx, best_response = 0.0, 0.05  # below this response: no clear peak
+    for blank in blank_m:
+        images = []
+        for db, azimuth, cfg in polar:
+            grid, _ = scan_to_grid(db, azimuth, np.zeros((len(azimuth), 3)), cfg.range_per_bin_m, cell_m,
+                                   min(range_m, cfg.range_max_m), 0.0, cfg.range_offset_m, blank)
+            images.append(grid.astype(np.float64))
+        window = cv2.createHanningWindow(images[0].shape[::-1], cv2.CV_64F)
+        (dx, _), response = cv2.phaseCorrelate(images[0], images[1], window)
+        if np.isfinite(dx) and np.isfinite(response) and response > best_response:
+            best_dx, best_response = dx, response
+    if dt_s <= 0:
+        return 0.0
+    return float(-best_dx * cell_m / dt_s)  # static echoes move back (-x) as the vehicle moves forward
 
 
 class PanoramicBuilder(Component):

@@ -1,0 +1,33 @@
+"""Readers of the public spinning-radar datasets (Navtech): Oxford Radar RobotCar, Boreas, RADIATE.
+
+Each reader turns a dataset folder into what a live radar would give: :class:`~impala_flow.msgs.RadarBeam`
+messages in acquisition order, each with its own timestamp (int ns) and its azimuth in the
+project convention (vehicle frame, 0 = forward, counter-clockwise positive, wrapped), plus the
+dataset's ground truth as :class:`~impala_flow.msgs.Pose2D` (x forward, y left, yaw CCW).
+The sensor's numbers (bins, range per bin, range of bin 0, beams per turn, rotation rate)
+come from the dataset and travel in every beam's :class:`~impala_flow.msgs.RadarConfig`.
+
+Bad input raises :class:`DatasetError`: one line naming the file and the row or scan.
+"""
+
+from __future__ import annotations
+
+from .common import DatasetError, ImportReport, NavtechDataset, iter_mission
+
+__all__ = ["DatasetError", "ImportReport", "NavtechDataset", "iter_mission", "open_dataset", "FORMATS"]
+
+#: dataset formats the ``import`` command and the sources read
+FORMATS = ("oxford", "boreas", "radiate")
+
+
+def open_dataset(fmt: str, folder: str, **options: object) -> NavtechDataset:
+    """The reader of format ``fmt`` (one of :data:`FORMATS`) on ``folder``."""
+    if fmt == "oxford":
+        from .oxford import OxfordDataset as cls
+    elif fmt == "boreas":
+        from .boreas import BoreasDataset as cls
+    elif fmt == "radiate":
+        from .radiate import RadiateDataset as cls
+    else:
+        raise ValueError(f"unknown dataset format {fmt!r} (known: {', '.join(FORMATS)})")
+    return cls(folder, **options)  # type: ignore[arg-type]

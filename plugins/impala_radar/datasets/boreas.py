@@ -1,0 +1,98 @@
+"""Boreas (University of Toronto): ``radar/<us>.png`` (Navtech CIR304-H) and
+``applanix/radar_poses.csv``.
+
+Same PNG family as Oxford (see :mod:`.navtech_png`), with the dataset's own numbers:
+
+* n_bins from the PNG width (6848 in 2024 frames, 3360 in 2020-2021 ones);
+* range per bin by date: 0.0596 m before 2021-09-21 00:00 UTC (Unix 1632182400 s), 0.04381 m
+  after (a firmware upgrade), decided on the first scan's time unless ``range_resolution_m``
+  is given;
+* column 10 is **not** a validity flag in the newer firmware: it alternates 0 / 255 with the
+  chirp direction of the azimuth, so every row is kept (Boreas' own tooling ignores it too).
+
+Ground truth, ``applanix/radar_poses.csv``: ``GPSTime,easting,northing,altitude,vel_east,
+vel_north,vel_up,roll,pitch,heading,angvel_z,angvel_y,angvel_x``; ``GPSTime`` (us) equals the
+PNG name. Positions are in a fixed East-North-Up frame. The angles are the radar frame's
+orientation as pyboreas builds it (DATA_REFERENCE.md, ``yawPitchRollToRot``):
+``C_enu_sensor = roll(r) pitch(p) yaw(h)`` with ``yaw(h) = [[cos h, sin h, 0], [-sin h, cos h, 0],
+[0, 0, 1]]`` (and likewise roll, pitch); the radar frame's x axis (forward) in ENU is the first
+column of C, so the vehicle's yaw counter-clockwise from east is
+``atan2(C[1, 0], C[0, 0]) = atan2(sin r sin p cos h - cos r sin h, cos p cos h)``. With the
+radar's z axis down (roll = pi, the rows of the dataset) this is ``heading`` itself; with
+roll = 0 it would be ``-heading``: the reader uses the full formula, not an assumed sign.
+The poses go to frame ``odom`` (first pose = identity, x forward, y left, yaw CCW).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .common import DatasetError, ImportReport, enu_to_odom, numbers, read_csv_columns
+from .oxford import NavtechPngDataset
+
+__all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BoreasDataset", "boreas_range_resolution_m", "read_boreas_poses",
+           "yaw_enu_of_boreas"]
+
+BOREAS_RESOLUTION_SWITCH_S = 1632182400  # 2021-09-21 00:00 UTC
+BOREAS_POSE_COLUMNS = ["GPSTime", "easting", "northing", "altitude", "vel_east", "vel_north", "vel_up",
+                       "roll", "pitch", "heading", "angvel_z", "angvel_y", "angvel_x"]
+
+
+def boreas_range_resolution_m(t_us: int) -> float:
+    """Range per bin of a Boreas scan taken at ``t_us`` (Unix us)."""
+    return 0.0596 if t_us < BOREAS_RESOLUTION_SWITCH_S * 1_000_000 else 0.04381
+
+
+def yaw_enu_of_boreas(roll: np.ndarray, pitch: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Yaw (CCW from east) of the sensor's x axis for pyboreas' (roll, pitch, heading)."""
+    c00 = np.cos(pitch) * np.cos(heading)
+    c10 = np.sin(roll) * np.sin(pitch) * np.cos(heading) - np.cos(roll) * np.sin(heading)
+    return np.arctan2(c10, c00)
+
+
+def read_boreas_poses(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(t_ns, easting, northing, yaw_enu)`` of ``radar_poses.csv`` (see the module doc)."""
+    _, text = read_csv_columns(path, ["GPSTime", "easting", "northing", "roll", "pitch", "heading"])
+    t_ns = numbers(path, text[:, :1], int).astype(np.int64)[:, 0] * np.int64(1000)
+    v = numbers(path, text[:, 1:], float)
+    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+    if bad.size:
+        raise DatasetError(f"{path}: row {int(bad[0]) + 2}: a position or angle is not finite")
+    back = np.flatnonzero(np.diff(t_ns) <= 0)
+    if back.size:
+        raise DatasetError(f"{path}: row {int(back[0]) + 3}: GPSTime does not increase")
+    return t_ns, v[:, 0], v[:, 1], yaw_enu_of_boreas(v[:, 2], v[:, 3], v[:, 4])
+
+
+class BoreasDataset(NavtechPngDataset):
+    """Boreas sequence folder: ``radar/<us>.png`` and optionally ``applanix/radar_poses.csv``."""
+
+    name = "boreas"
+    sensor = "navtech-cir304h"
+    flag_is_valid = False
+
+    def __init__(self, folder: str | Path, range_resolution_m: float = 0.0, azimuth_offset_deg: float = 0.0,
+                 range_offset_bins: float = 0.5, report: ImportReport | None = None) -> None:
+        from .oxford import timestamped_pngs
+
+        if not range_resolution_m:
+            range_resolution_m = boreas_range_resolution_m(timestamped_pngs(Path(folder))[0][0])
+        super().__init__(folder, range_resolution_m, azimuth_offset_deg, range_offset_bins, report)
+        if report is not None:
+            report.notes.append("column 10 is the chirp direction (0 / 255), not a validity flag: every row kept")
+
+    def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray] | None:
+        path = self.folder / "applanix" / "radar_poses.csv"
+        if not path.exists():
+            report.notes.append("no applanix/radar_poses.csv: no truth poses")
+            return None
+        t_ns, east, north, yaw = read_boreas_poses(path)
+        mine = np.isin(t_ns, np.array(self.scan_stamps_us, dtype=np.int64) * 1000)
+        if not mine.any():
+            report.notes.append(f"{path.name}: no GPSTime equals a scan name: no truth poses")
+            return None
+        if mine.sum() < len(self.scan_paths):
+            report.notes.append(f"{path.name}: {len(self.scan_paths) - int(mine.sum())} scan(s) without a pose")
+        return t_ns[mine], enu_to_odom(east[mine], north[mine], yaw[mine])

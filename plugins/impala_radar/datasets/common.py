@@ -1,0 +1,240 @@
+"""What every Navtech dataset reader shares: the sensor description, the scan record, the
+time-ordered beam and truth stream, the import report and the one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import heapq
+import math
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from impala_flow import msgs
+
+__all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
+           "read_csv_columns", "enu_to_odom", "counts_to_power"]
+
+_BANDWIDTH_HZ = 1.0e9  # 76-77 GHz sweep of the Navtech CTS350-X / CIR304-H
+_F0_HZ = 76.5e9
+_EMPTY = np.zeros(0, dtype=np.float32)
+
+
+class DatasetError(ValueError):
+    """Bad dataset input; the message is one line naming the file and the row or scan."""
+
+
+def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offset_m: float,
+                   beams_per_turn: int, rotation_hz: float) -> msgs.RadarConfig:
+    """A power-only Navtech radar as a :class:`~impala_flow.msgs.RadarConfig`.
+
+    Navtech gives no beat frequencies: ``modulation_hz`` is one sweep per azimuth
+    (``beams_per_turn * rotation_hz``) and ``bin_hz`` is chosen so that
+    ``range_per_bin_m = c bin_hz / (4 bandwidth_hz modulation_hz)`` is the dataset's range
+    per bin. Bin k lies at ``range_offset_m + k range_per_bin_m``; ``range_max_m`` is the far
+    edge of the last bin, ``n_bins range_per_bin_m``."""
+    modulation_hz = beams_per_turn * rotation_hz
+    return msgs.RadarConfig(
+        name=name, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ, modulation_hz=modulation_hz,
+        bin_hz=range_per_bin_m * 4.0 * _BANDWIDTH_HZ * modulation_hz / msgs.SPEED_OF_LIGHT_MPS,
+        n_bins=int(n_bins), beam_width_rad=math.radians(1.8), rotation_hz=float(rotation_hz),
+        beams_per_turn=int(beams_per_turn), range_min_m=0.0, range_max_m=n_bins * range_per_bin_m,
+        doppler=False, range_offset_m=float(range_offset_m))
+
+
+@dataclass(eq=False)
+class Scan:
+    """One antenna turn in acquisition order: per-row ``t_ns`` (int64), ``azimuth_rad`` (project
+    convention: CCW, 0 = forward, wrapped), ``power`` (float32 rows x bins, value / 255), and
+    ``keep`` (rows emitted as beams; the others are dropped for ``drop_reason``)."""
+
+    path: Path
+    t_ns: np.ndarray
+    azimuth_rad: np.ndarray
+    power: np.ndarray
+    keep: np.ndarray
+    drop_reason: str = ""
+
+
+@dataclass
+class ImportReport:
+    """What a reader read: printed by ``impala-flow import`` (:meth:`lines`) and given as
+    plain key/values (:meth:`as_metadata`)."""
+
+    dataset: str = ""
+    folder: str = ""
+    config: msgs.RadarConfig | None = None
+    turns: int = 0
+    beams: int = 0
+    dropped_rows: Counter = field(default_factory=Counter)  # reason -> rows
+    skipped_scans: list[str] = field(default_factory=list)  # "file: reason"
+    truth_poses: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def sensor_line(self) -> str:
+        c = self.config
+        if c is None:
+            return "-"
+        return (f"{c.name}, {c.beams_per_turn} beams/turn at {c.rotation_hz:.3f} Hz, {c.n_bins} bins x "
+                f"{c.range_per_bin_m:.5f} m = {c.n_bins * c.range_per_bin_m:.1f} m "
+                f"(bin 0 at {c.range_offset_m:.4f} m)")
+
+    def lines(self) -> list[str]:
+        dropped = sum(self.dropped_rows.values())
+        out = [f"dataset:      {self.dataset} ({self.folder})",
+               f"sensor:       {self.sensor_line()}",
+               f"turns:        {self.turns}",
+               f"beams:        {self.beams}",
+               "rows dropped: " + ("0" if not dropped else f"{dropped} (" + ", ".join(
+                   f"{n} {reason}" for reason, n in sorted(self.dropped_rows.items())) + ")")]
+        if self.skipped_scans:
+            out.append(f"scans skipped: {len(self.skipped_scans)} (" + "; ".join(self.skipped_scans) + ")")
+        out.append(f"truth poses:  {self.truth_poses}")
+        out += [f"note:         {n}" for n in self.notes]
+        return out
+
+    def as_metadata(self) -> dict[str, str]:
+        c = self.config
+        meta = {"dataset": self.dataset, "folder": self.folder, "sensor": self.sensor_line(),
+                "turns": str(self.turns), "beams": str(self.beams),
+                "rows_dropped": str(sum(self.dropped_rows.values())),
+                "truth_poses": str(self.truth_poses)}
+        if c is not None:
+            meta.update(n_bins=str(c.n_bins), range_per_bin_m=repr(c.range_per_bin_m),
+                        range_offset_m=repr(c.range_offset_m), beams_per_turn=str(c.beams_per_turn))
+        meta.update({f"rows_dropped[{r}]": str(n) for r, n in sorted(self.dropped_rows.items())})
+        if self.skipped_scans:
+            meta["scans_skipped"] = "; ".join(self.skipped_scans)
+        meta.update({f"note{i}": n for i, n in enumerate(self.notes)})
+        return meta
+
+
+class NavtechDataset:
+    """Base of the readers: a sorted list of scan files, a sensor ``config``, ``read_scan(k)``
+    and ``truth()``. Subclasses check the folder in ``__init__`` (raising
+    :class:`DatasetError`) and fill ``scan_paths`` and ``config``."""
+
+    name = ""
+    scan_paths: list[Path]
+    config: msgs.RadarConfig
+
+    def read_scan(self, k: int) -> Scan:
+        raise NotImplementedError
+
+    def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray] | None:
+        """Ground truth as ``(t_ns int64 (N,), xyt (N, 3))`` in frame ``odom`` (x forward, y
+        left, yaw CCW), or None (with a note in ``report``)."""
+        return None
+
+    def duration_hint_ns(self) -> int | None:
+        return None
+
+
+def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
+    """Linear power (float32) of Navtech pixels ``power`` = count / 255: the radar writes its
+    power on a log scale, ``db_per_count`` dB per count (0.5 for the CTS350-X and CIR304-H:
+    0-127.5 dB over the 8 bits), so P = 10^(count db_per_count / 10), 1 at count 0. Every
+    beam of the project carries linear power (the simulator's unit), so one graph serves
+    simulated and real missions."""
+    db = np.rint(np.asarray(power, np.float64) * 255.0) * db_per_count  # the integer count, exactly
+    return np.power(10.0, db / 10.0).astype(np.float32)
+
+
+def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
+           ) -> Iterator[tuple[int, int, str, msgs.RadarBeam]]:
+    last_t: int | None = None
+    for k, path in enumerate(ds.scan_paths):
+        try:
+            scan = ds.read_scan(k)
+            t = scan.t_ns[scan.keep]
+            back = np.flatnonzero(np.diff(t) < 0)
+            if back.size:
+                row = int(np.flatnonzero(scan.keep)[back[0] + 1])
+                raise DatasetError(f"{path}: row {row}: time goes backwards "
+                                   f"({int(t[back[0] + 1])} ns after {int(t[back[0]])} ns)")
+            if last_t is not None and t.size and t[0] < last_t:
+                raise DatasetError(f"{path}: scan {k} starts at {int(t[0])} ns, before the end of the "
+                                   f"previous scan ({last_t} ns): scans out of order")
+        except DatasetError as e:
+            if not skip_bad:
+                raise
+            report.skipped_scans.append(str(e))
+            continue
+        n_drop = int(scan.keep.size - np.count_nonzero(scan.keep))
+        if n_drop:
+            report.dropped_rows[scan.drop_reason or "dropped"] += n_drop
+        report.turns += 1
+        rows = np.flatnonzero(scan.keep)
+        report.beams += rows.size
+        if rows.size:
+            last_t = int(scan.t_ns[rows[-1]])
+        power = counts_to_power(scan.power, db_per_count)
+        for i, ti, az in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(),
+                             strict=True):
+            yield ti, 0, "beams", msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config)
+
+
+def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_bad: bool = False,
+                 db_per_count: float = 0.5) -> Iterator[tuple[int, str, msgs.RadarBeam | msgs.Pose2D]]:
+    """``(t_ns, "beams" | "truth", message)`` in time order (beams before a truth pose of the
+    same time), the beams' power linear (:func:`counts_to_power`). Bad scans raise
+    :class:`DatasetError`; with ``skip_bad`` they are skipped and listed in
+    ``report.skipped_scans``. Dropped rows are counted by reason in ``report``."""
+    report = report if report is not None else ImportReport()
+    report.dataset, report.config = report.dataset or ds.name, ds.config
+    streams: list[Iterator] = [_beams(ds, report, skip_bad, db_per_count)]
+    truth = ds.truth(report)
+    if truth is not None and len(truth[0]):
+        t, xyt = truth
+        report.truth_poses = len(t)
+        streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, frame="odom"))
+                       for ti, (x, y, th) in zip(t.tolist(), xyt.tolist(), strict=True))
+    for t_ns, _, stream, msg in heapq.merge(*streams, key=lambda item: (item[0], item[1])):
+        yield t_ns, stream, msg
+
+
+def read_csv_columns(path: Path, columns: list[str]) -> tuple[list[str], np.ndarray]:
+    """Rows of a CSV file with a header, as text (N, len(columns)), in the order asked.
+    A missing column, a short row or an empty field is a :class:`DatasetError` naming the file
+    and the row (1 = the header)."""
+    with open(path, newline="") as f:
+        reader = csv.reader(f)
+        header = [h.strip() for h in next(reader, [])]
+        missing = [c for c in columns if c not in header]
+        if missing:
+            raise DatasetError(f"{path}: row 1 (header): missing column(s) {', '.join(missing)}")
+        idx = [header.index(c) for c in columns]
+        rows = []
+        for n, row in enumerate(reader, start=2):
+            if not row or not "".join(row).strip():
+                continue
+            if len(row) < len(header) or any(not row[i].strip() for i in idx):
+                raise DatasetError(f"{path}: row {n}: {len(row)} fields, expected {len(header)} "
+                                   f"with {', '.join(columns)} filled")
+            rows.append([row[i].strip() for i in idx])
+    return header, np.array(rows, dtype=str).reshape(-1, len(columns))
+
+
+def numbers(path: Path, text: np.ndarray, dtype: type, first_row: int = 2) -> np.ndarray:
+    """``text`` (rows of strings) as numbers; a bad field is a :class:`DatasetError` with its row."""
+    try:
+        return text.astype(dtype)
+    except ValueError:
+        for n, row in enumerate(text):
+            for v in row:
+                try:
+                    dtype(v)
+                except ValueError:
+                    raise DatasetError(f"{path}: row {n + first_row}: not a number: {str(v)!r}") from None
+        raise
+
+
+def enu_to_odom(east_m: np.ndarray, north_m: np.ndarray, yaw_enu_rad: np.ndarray) -> np.ndarray:
+    """Poses in a local East-North frame (yaw of the vehicle's forward axis CCW from east) as
+    ``xyt`` in frame ``odom``: the first pose at the identity, x forward, y left, yaw CCW."""
+    e, n = east_m - east_m[0], north_m - north_m[0]
+    c, s = math.cos(yaw_enu_rad[0]), math.sin(yaw_enu_rad[0])
+    return np.column_stack([c * e + s * n, -s * e + c * n, msgs.wrap_angle(yaw_enu_rad - yaw_enu_rad[0])])
