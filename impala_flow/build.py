@@ -176,6 +176,10 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
         if problems:
             raise GraphError(problems)
         params = {k: v for k, v in spec.record.items() if k != "streams"}
+        if spec.clock_mode == "replay":
+            # offline: chunks by size only, never by wall time, so the same inputs give the
+            # same bytes at any replay speed (a live run keeps its crash-safety flushes)
+            params.setdefault("flush_period_s", 0.0)
         params.update(topics=topics, graph=spec.resolved(),
                       plugins={n: p.version for n, p in registry.plugins.items()})
         rec = registry.components[RECORDER_TYPE](name=RECORDER_ID, **params)
