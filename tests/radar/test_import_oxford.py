@@ -56,6 +56,16 @@ def test_import_prints_what_it_read(tmp_path, capsys):
     assert "turns:        11" in text and "beams:        4400" in text
     assert "rows dropped: 0" in text and "truth poses:  12" in text
     assert [p.name for p in tmp_path.iterdir()] == ["oxford.mcap"]  # no temporary file left
+    # the mission file carries the same block: `impala-flow info` shows it
+    assert main(["info", str(out)]) == 0
+    info = capsys.readouterr().out
+    assert "metadata impala_flow.source.oxford:" in info
+    assert "3768 bins x 0.04380 m = 165.0 m" in info and "turns: 11" in info and "rows_dropped: 0" in info
+    with open(out, "rb") as f:  # written as an MCAP metadata record (the official reader sees it)
+        from mcap.reader import make_reader
+
+        records = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert records["impala_flow.source.oxford"]["beams"] == "4400"
 
 
 def test_import_range_resolution_and_azimuth_offset_options(tmp_path):
