@@ -67,7 +67,9 @@ class MatchResult:
 
 
 def contrast(img: np.ndarray, window_cells: int, support: np.ndarray | None = None) -> np.ndarray:
-    """Echoes above their local mean over ``window_cells``, negatives cut to 0.
+    """Each observed cell minus the mean of the observed cells in the ``window_cells``-wide
+    square around it (odd, at least 3): positive above the local level, negative below it
+    (kept: the correlation of eq. 5 then compares patterns, not levels); 0 where not observed.
 
     The mean is taken over the observed cells only (``support``: 1 observed, 0 not; by
     default the non-zero cells), so the rim of the radar's reach and the edge of the
