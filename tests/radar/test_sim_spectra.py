@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS as C
 from impala_radar.sim.presets import IMPALA, K2PI, preset
 from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
 from impala_radar.sim.spectra import (
@@ -159,4 +158,7 @@ def test_beam_timing_and_azimuths():
     assert t[0] == 1_000 + round((720.5) * 1e9 / 360)
     az = beam_azimuths_rad(IMPALA)
     assert az[0] == pytest.approx(math.radians(0.5)) and az[-1] < 2 * np.pi
-    assert C > 0
+    assert np.allclose(np.diff(az), 2 * np.pi / 360)  # one degree per beam, counter-clockwise
+    # a clockwise antenna starting at 90 deg: beam j at 90 - (j + 1/2) deg, wrapped to [0, 360)
+    cw = beam_azimuths_rad(IMPALA, RadarParams(clockwise=True, start_azimuth_rad=math.radians(90.0)))
+    assert np.allclose(np.degrees(cw), np.mod(90.0 - (np.arange(360) + 0.5), 360.0))

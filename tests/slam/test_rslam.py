@@ -10,6 +10,7 @@ from impala_flow.component import Output, Source
 from impala_flow.msgs import Grid, Pose2D, Speed, YawRate
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_slam import DeadReckoning, MatchParams, RSlam, RSlamConfig, RSlamCore, TileMap, match_to_map
+from impala_slam.se2 import between
 from impala_slam.synthetic import SyntheticWorld, synthetic_mission
 
 cv2.setNumThreads(1)
@@ -73,20 +74,28 @@ def test_rslam_component_beats_dead_reckoning_on_a_synthetic_mission():
     assert len(poses) == 12 and all(p.data.frame == "map" and p.data.cov_xyt.shape == (3, 3) for p in poses)
     assert len(sink.by_port["map"]) >= 2 and sink.by_port["map"][-1].data.frame == "map"
     truth_at = {s.timestamp: s.data for s in truth}
-    t0 = truth_at[poses[0].timestamp]  # map frame = odometry frame at the first turn: compare increments
-    def err(samples):
-        first = samples[0].data
-        out = []
-        for s in samples:
-            if s.timestamp not in truth_at or s.timestamp < poses[0].timestamp:
-                continue
-            tr = truth_at[s.timestamp]
-            d_true = np.hypot(tr.x_m - t0.x_m, tr.y_m - t0.y_m)
-            d_est = np.hypot(s.data.x_m - first.x_m, s.data.y_m - first.y_m)
-            out.append(abs(d_true - d_est))
-        return max(out)
-    assert err(poses) < 0.1
-    assert err([s for s in sink.by_port["dr"] if s.timestamp >= poses[0].timestamp]) > 0.3  # 5 % scale error
+
+    def rel(a, b):  # pose b in the frame of pose a: (x, y, theta)
+        return between((a.x_m, a.y_m, a.theta_rad), (b.x_m, b.y_m, b.theta_rad))
+
+    def errors(samples):
+        """Full pose errors (m, deg) of each sample relative to the first one, against the truth's
+        (the map frame is the odometry frame of the first turn): lateral and heading too."""
+        samples = [s for s in samples if s.timestamp in truth_at and s.timestamp >= poses[0].timestamp]
+        first, t0 = samples[0].data, truth_at[samples[0].timestamp]
+        pos, head = [], []
+        for s in samples[1:]:
+            e, g = rel(first, s.data), rel(t0, truth_at[s.timestamp])
+            pos.append(math.hypot(e[0] - g[0], e[1] - g[1]))
+            head.append(abs(math.degrees(math.remainder(e[2] - g[2], 2 * math.pi))))
+        return max(pos), max(head)
+
+    slam_pos, slam_head = errors(poses)
+    dr_pos, dr_head = errors(sink.by_port["dr"])
+    print(f"\nsynthetic mission: R-SLAM {slam_pos:.3f} m / {slam_head:.3f} deg, "
+          f"dead reckoning {dr_pos:.3f} m / {dr_head:.3f} deg")
+    assert slam_pos < 0.1 and slam_head < 0.3
+    assert dr_pos > 0.3 and dr_head > 2 * slam_head  # 5 % scale error, 0.01 rad/s gyro bias
 
 
 def test_dead_reckoning_follows_an_exact_circle():
