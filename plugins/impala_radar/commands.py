@@ -42,7 +42,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "  impala-flow simulate graphs/scenarios/datmo.yaml -o datmo.mcap --seed 3",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("scenario", help="scenario name (beynes, campus-open, campus-loop, semi-urban, datmo) or YAML file")
+    p.add_argument("scenario", help="scenario name (beynes, campus-open, campus-loop, semi-urban, datmo, urban) "
+                   "or YAML file")
     p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap)")
     p.add_argument("--duration", type=_duration_s, default=None, help="mission length, e.g. 60s, 5min "
                    "(default: the scenario's full length)")

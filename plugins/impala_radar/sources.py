@@ -149,7 +149,7 @@ class Simulator(Source):
     """The physically based FMCW rotating-radar simulator on a scenario world.
 
     ``scenario`` is a name under ``graphs/scenarios/`` (beynes, campus-open, campus-loop,
-    semi-urban, datmo) or a path to a scenario YAML file.
+    semi-urban, datmo, urban) or a path to a scenario YAML file.
     """
 
     scenario = Param(str, default="beynes", doc="scenario name or YAML file")

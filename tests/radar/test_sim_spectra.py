@@ -27,7 +27,7 @@ def test_presets_match_the_papers():
         ramp_s = 1 / (2 * cfg.modulation_hz)
         assert cfg.bin_hz <= 1 / ramp_s + 1e-9  # zero-padded, never coarser than 1/T
         assert cfg.n_bins * cfg.range_per_bin_m > cfg.range_max_m
-    with pytest.raises(KeyError, match="impala, k2pi"):
+    with pytest.raises(KeyError, match="impala, k2pi, navtech"):
         preset("nope")
 
 

@@ -23,7 +23,7 @@ import math
 
 from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
-__all__ = ["IMPALA", "K2PI", "PRESETS", "preset", "ZERO_PADDING"]
+__all__ = ["IMPALA", "K2PI", "NAVTECH", "PRESETS", "preset", "ZERO_PADDING"]
 
 ZERO_PADDING = 2
 """Spectrum bins per Rayleigh frequency cell (1/T) in the presets."""
@@ -74,11 +74,35 @@ K2PI = RadarConfig(
     height_m=3.0,
 )
 
-PRESETS: dict[str, RadarConfig] = {"impala": IMPALA, "k2pi": K2PI}
+# Navtech CTS350-X, as in Oxford Radar RobotCar (RADAR.md; ../shared/data): 76-77 GHz
+# single-ramp (sawtooth) FMCW, power only (no up/down pair), 4 turns/s, 400 azimuths, one
+# sweep per azimuth (Fm = 1600 Hz), 3768 range bins of 4.38 cm (measured on the Oxford
+# sample against its ground truth: impala_radar.datasets.oxford), bin k at its centre,
+# 1.8 deg beam (3 dB, horizontal), clockwise. With dF = 1 GHz the Rayleigh resolution c/(2 dF)
+# is 15 cm: the bins oversample it 3.4 times, as the radar's processor does.
+_NAVTECH_BIN_M = 0.0438
+NAVTECH = RadarConfig(
+    name="navtech-cts350x",
+    f0_hz=76.5e9,
+    bandwidth_hz=1.0e9,
+    modulation_hz=1600.0,
+    bin_hz=_NAVTECH_BIN_M * 4.0 * 1.0e9 * 1600.0 / SPEED_OF_LIGHT_MPS,
+    n_bins=3768,
+    beam_width_rad=math.radians(1.8),
+    rotation_hz=4.0,
+    beams_per_turn=400,
+    range_min_m=0.0,
+    range_max_m=3768 * _NAVTECH_BIN_M,
+    doppler=False,
+    height_m=2.0,
+    range_offset_m=0.5 * _NAVTECH_BIN_M,
+)
+
+PRESETS: dict[str, RadarConfig] = {"impala": IMPALA, "k2pi": K2PI, "navtech": NAVTECH}
 
 
 def preset(name: str) -> RadarConfig:
-    """A copy of the preset called ``name`` (case-insensitive): ``impala`` or ``k2pi``."""
+    """A copy of the preset called ``name`` (case-insensitive): ``impala``, ``k2pi`` or ``navtech``."""
     try:
         return dataclasses.replace(PRESETS[name.lower()])
     except KeyError:

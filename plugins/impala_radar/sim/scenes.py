@@ -13,6 +13,9 @@ or a stationary pose). Coordinates in metres, x east, y north.
   route at ~30 km/h (seed 1 §4.2).
 - ``datmo``: static radar by a crossroads; a car at 20 km/h, later one at 50 km/h, a convoy
   of three cars, then two crossing cars (seed 1 §4.3).
+- ``urban``: a city centre shaped like the Oxford Radar RobotCar sample (sim-to-real):
+  streets between continuous building facades, kerbs, parked cars, street trees and hedges,
+  lamp posts, a few moving cars; a ~1.2 km route with five turns at 5-10 m/s.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import numpy as np
 
 from .world import Route, World, WorldBuilder
 
-__all__ = ["beynes", "campus", "semi_urban", "datmo", "SCENES"]
+__all__ = ["beynes", "campus", "semi_urban", "datmo", "urban", "SCENES"]
 
 _MARGIN_M = 110.0  # clutter around the route: the radar's reach
 _KMH = 1.0 / 3.6
@@ -225,4 +228,79 @@ def datmo(rng: np.random.Generator) -> tuple[World, dict[str, Route]]:
     return b.build(), {"default": route}
 
 
-SCENES = {"beynes": beynes, "campus": campus, "semi_urban": semi_urban, "datmo": datmo}
+def _street_side(b: WorldBuilder, rng, p0, p1, side: float, half_road_m: float) -> None:
+    """One side of a street from p0 to p1: kerb, parked cars, trees or hedges, lamp posts,
+    then a continuous row of facades (gaps for side streets are left by the caller)."""
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    length = float(np.hypot(*(p1 - p0)))
+    d = (p1 - p0) / length
+    n = np.array([-d[1], d[0]]) * side
+    heading = float(np.arctan2(d[1], d[0]))
+    t = np.arange(0.0, length, 0.5)
+    kerb = p0 + t[:, None] * d + (half_road_m * n)[None, :]
+    b.points(kerb, 0.12, 0.05, "road")  # a granite kerb: weak, continuous, 12 cm high
+    for s in np.arange(3.0, length - 3.0, 5.5):  # parked cars along the kerb
+        if rng.uniform() < 0.45:
+            b.parked_car(*(p0 + s * d + (half_road_m - 1.1) * n), heading + rng.normal(0, 0.03))
+    for s in np.arange(6.0, length, 11.0):  # pavement: street trees or hedges
+        u = rng.uniform()
+        where = p0 + (s + rng.normal(0, 0.5)) * d + (half_road_m + 1.6) * n
+        if u < 0.35:
+            b.tree(*where, crown_m=rng.uniform(1.8, 3.0))
+        elif u < 0.5:
+            for k in range(3):
+                b.bush(*(where + d * (k * 1.8 - 1.8)), 0.9, density_pm2=3.0)
+    for s in np.arange(12.0, length, 26.0):  # lamp posts: a metal pole, the lantern at 6 m
+        post = p0 + s * d + (half_road_m + 0.6) * n
+        b.points([post, post], [1.0, 6.0], [1.0, rng.uniform(2.0, 6.0)], "sign")
+    s = 0.0
+    while s < length - 6.0:  # facades: buildings 12-30 m wide, 1-3 m gaps, set back 3.5-5 m
+        w = min(rng.uniform(12.0, 30.0), length - s)
+        depth = rng.uniform(10.0, 16.0)
+        setback = half_road_m + rng.uniform(3.5, 5.0)
+        c = p0 + (s + w / 2) * d + (setback + depth / 2) * n
+        b.building(*c, w, depth, heading, metal=rng.uniform() < 0.1)
+        s += w + rng.uniform(1.0, 3.0)
+
+
+def urban(rng: np.random.Generator) -> tuple[World, dict[str, Route]]:
+    """City centre for sim-to-real (the Oxford sample's kind of street): blocks of facades."""
+    half_road = 4.5  # 9 m between kerbs
+    # the route along the street centrelines: five turns, ~1.2 km
+    centre = np.array([[0, 0], [260, 0], [260, 180], [120, 180], [120, 330], [-80, 330], [-80, 120]], float)
+    streets = [((-140, 0), (330, 0)), ((260, -60), (260, 240)), ((60, 180), (330, 180)),
+               ((120, 120), (120, 400)), ((-150, 330), (190, 330)), ((-80, 60), (-80, 400))]
+    b = WorldBuilder(rng)
+    junctions = [np.array(p, float) for p in centre[1:]] + [np.array([120.0, 0.0]), np.array([-80.0, 0.0])]
+    for p0, p1 in streets:
+        p0, p1 = np.array(p0, float), np.array(p1, float)
+        b.road([p0, p1], width_m=2 * half_road, sigma0_db=-30.0)
+        length = float(np.hypot(*(p1 - p0)))
+        d = (p1 - p0) / length
+        # cut the street into stretches between junctions (side streets open the facades)
+        along = {float((j - p0) @ d): abs(float(d[0] * (j - p0)[1] - d[1] * (j - p0)[0])) for j in junctions}
+        cuts = sorted({0.0, length} | {a for a, off in along.items() if off < 1.0 and 0.0 < a < length})
+        for a0, a1 in zip(cuts[:-1], cuts[1:], strict=True):
+            lo, hi = a0 + (half_road + 3.0 if a0 > 0 else 0.0), a1 - (half_road + 3.0 if a1 < cuts[-1] else 0.0)
+            if hi - lo < 8.0:
+                continue
+            for side in (-1.0, 1.0):
+                _street_side(b, rng, p0 + lo * d, p0 + hi * d, side, half_road)
+    b.clutter(_extent(centre, 80.0), 0.3, -26.0, kind="grass")  # courtyards, pavements
+    # a few moving cars: oncoming and same-direction traffic on the route's streets
+    s = 1_000_000_000
+    b.car_mover([[330, -1.8], [-140, -1.8]], 9.0, 2 * s)
+    b.car_mover([[-140, 1.8], [330, 1.8]], 7.0, 0)
+    b.car_mover([[261.8, -60], [261.8, 240]], 8.0, 20 * s)
+    b.car_mover([[190, 331.8], [-150, 331.8]], 10.0, 60 * s)
+    b.car_mover([[-81.8, 400], [-81.8, 60]], 8.0, 95 * s)
+    way = centre
+    # speeds: 9 m/s on the straights, 5 m/s through the turns
+    mids = 0.5 * (way[1:] + way[:-1])
+    dense = np.empty((2 * len(way) - 1, 2))
+    dense[0::2], dense[1::2] = way, mids
+    speed = np.where(np.arange(len(dense)) % 2 == 1, 9.0, 5.0)
+    return b.build(), {"default": Route(dense, speed)}
+
+
+SCENES = {"beynes": beynes, "campus": campus, "semi_urban": semi_urban, "datmo": datmo, "urban": urban}
