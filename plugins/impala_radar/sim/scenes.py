@@ -14,7 +14,8 @@ or a stationary pose). Coordinates in metres, x east, y north.
 - ``datmo``: static radar by a crossroads; a car at 20 km/h, later one at 50 km/h, a convoy
   of three cars, then two crossing cars (seed 1 §4.3).
 - ``urban``: a city centre shaped like the Oxford Radar RobotCar sample (sim-to-real):
-  streets between continuous building facades, kerbs, parked cars, street trees and hedges,
+  streets 12 m wide between building facades (with lanes and open plots), kerbs, parked
+  cars, street trees and hedges,
   lamp posts, a few moving cars; a ~1.2 km route with five turns at 5-10 m/s.
 """
 
@@ -240,7 +241,7 @@ def _street_side(b: WorldBuilder, rng, p0, p1, side: float, half_road_m: float) 
     kerb = p0 + t[:, None] * d + (half_road_m * n)[None, :]
     b.points(kerb, 0.12, 0.05, "road")  # a granite kerb: weak, continuous, 12 cm high
     for s in np.arange(3.0, length - 3.0, 5.5):  # parked cars along the kerb
-        if rng.uniform() < 0.45:
+        if rng.uniform() < 0.35:
             b.parked_car(*(p0 + s * d + (half_road_m - 1.1) * n), heading + rng.normal(0, 0.03))
     for s in np.arange(6.0, length, 11.0):  # pavement: street trees or hedges
         u = rng.uniform()
@@ -254,18 +255,26 @@ def _street_side(b: WorldBuilder, rng, p0, p1, side: float, half_road_m: float) 
         post = p0 + s * d + (half_road_m + 0.6) * n
         b.points([post, post], [1.0, 6.0], [1.0, rng.uniform(2.0, 6.0)], "sign")
     s = 0.0
-    while s < length - 6.0:  # facades: buildings 12-30 m wide, 1-3 m gaps, set back 3.5-5 m
-        w = min(rng.uniform(12.0, 30.0), length - s)
-        depth = rng.uniform(10.0, 16.0)
-        setback = half_road_m + rng.uniform(3.5, 5.0)
-        c = p0 + (s + w / 2) * d + (setback + depth / 2) * n
-        b.building(*c, w, depth, heading, metal=rng.uniform() < 0.1)
-        s += w + rng.uniform(1.0, 3.0)
+    while s < length - 6.0:  # facades 10-30 m wide, set back 4-10 m, with lanes and open plots
+        w = min(rng.uniform(10.0, 30.0), length - s)
+        if rng.uniform() < 0.25:  # an open plot (a square, a car park): a few cars and trees
+            for _ in range(rng.integers(0, 4)):
+                b.parked_car(*(p0 + (s + rng.uniform(0, w)) * d + (half_road_m + rng.uniform(6, 20)) * n),
+                             heading + np.pi / 2 + rng.normal(0, 0.1))
+            for _ in range(rng.integers(0, 3)):
+                b.tree(*(p0 + (s + rng.uniform(0, w)) * d + (half_road_m + rng.uniform(6, 25)) * n),
+                       crown_m=rng.uniform(2.0, 3.5))
+        else:
+            depth = rng.uniform(10.0, 18.0)
+            setback = half_road_m + rng.uniform(4.0, 10.0)
+            c = p0 + (s + w / 2) * d + (setback + depth / 2) * n
+            b.building(*c, w, depth, heading + rng.normal(0, 0.03), metal=rng.uniform() < 0.1)
+        s += w + rng.uniform(1.0, 8.0)
 
 
 def urban(rng: np.random.Generator) -> tuple[World, dict[str, Route]]:
     """City centre for sim-to-real (the Oxford sample's kind of street): blocks of facades."""
-    half_road = 4.5  # 9 m between kerbs
+    half_road = 6.0  # 12 m between kerbs
     # the route along the street centrelines: five turns, ~1.2 km
     centre = np.array([[0, 0], [260, 0], [260, 180], [120, 180], [120, 330], [-80, 330], [-80, 120]], float)
     streets = [((-140, 0), (330, 0)), ((260, -60), (260, 240)), ((60, 180), (330, 180)),
