@@ -66,7 +66,10 @@ def test_every_scenario_file_loads_and_runs_short(name):
     s = load_scenario(name, duration_s=0.05)
     assert s.duration_ns <= 50_000_000
     items = list(s.simulate())
-    assert sum(p == "beams" for _, p, _ in items) == 18
+    # one beam every 1 / (rotation rate x beams per turn) from t = 0: IMPALA 360/s -> 18,
+    # Navtech 4 Hz x 400 -> 80
+    period_ns = 1e9 / (s.config.rotation_hz * s.config.beams_per_turn)
+    assert sum(p == "beams" for _, p, _ in items) == int(np.floor(50_000_000 / period_ns + 1e-9))
 
 
 def test_scenario_shapes_follow_radar_md():
