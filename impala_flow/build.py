@@ -1,17 +1,21 @@
 """Validation of a loaded :class:`GraphSpec` against the installed plugins, and building
-the :class:`Network` an executor runs. Every problem is collected, none stops the scan."""
+the :class:`Network` an executor runs. Every problem is collected, none stops the scan.
+
+Layering: :mod:`impala_flow.spec` (the model and its problems) <- this module (validation
+and construction) <- :mod:`impala_flow.graph` (reading YAML files, then validating).
+"""
 
 from __future__ import annotations
 
 import fnmatch
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .component import Component, Input, Output
 from .network import CycleError, Network
+from .paths import check_paths
 from .registry import Registry
-
-if TYPE_CHECKING:
-    from .graph import GraphSpec, Problem
+from .spec import GraphError, GraphSpec, Problem, closest, did_you_mean
+from .yamlloc import Loc
 
 __all__ = ["validate", "build", "to_dot", "RECORDER_TYPE", "resolve_record"]
 
@@ -31,8 +35,6 @@ PortTable = dict[str, tuple[type[Component], dict, dict[str, Input], dict[str, O
 
 
 def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> PortTable:
-    from .graph import Problem, closest
-
     out: dict[str, Any] = {}
     for c in spec.components.values():
         cls = registry.components.get(c.type)
@@ -61,8 +63,6 @@ def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> Port
 def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], problems: list[Problem]) -> dict[str, str]:
     """``record.streams`` patterns -> {topic: "component.port"} (topic is ``component/port``
     unless a stream is given as ``{from: component.port, topic: name}``)."""
-    from .graph import Problem
-
     rec = spec.record or {}
     streams = rec.get("streams", ["*"])
     topics: dict[str, str] = {}
@@ -91,12 +91,20 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
 
 
 def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
-    """Every problem of ``spec``: types, parameters, ports, port types, required inputs,
-    cycles without a delay, record streams."""
-    from .graph import Problem, closest, did_you_mean
-
+    """Every problem of ``spec``: an empty graph, types, parameters, ports, port types,
+    required inputs, cycles without a delay, record streams, a live source in an offline
+    (``mode: replay``) graph, files written over files read or in folders that cannot be
+    created (:func:`impala_flow.paths.check_paths`)."""
     problems: list[Problem] = []
+    if not spec.components:
+        problems.append(Problem(Loc(spec.file, 1, 1), "the graph has no components: nothing to run"))
     ports = _ports(spec, registry, problems)
+    if spec.clock_mode == "replay":
+        for cid, (cls, _, _, _) in ports.items():
+            if cls.live:
+                problems.append(Problem(spec.components[cid].loc, f"component '{cid}' ({spec.components[cid].type}) "
+                                        "is a live source: an offline graph (clock mode 'replay') cannot run it; "
+                                        "set clock: {mode: realtime}"))
     connected: set[tuple[str, str]] = set()
     edges: list[tuple[str, str, Any]] = []
     for c in spec.connections:
@@ -136,7 +144,7 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
             if decl.required and (cid, name) not in connected and cid != RECORDER_ID:
                 problems.append(Problem(spec.components[cid].loc,
                                         f"component '{cid}': required input '{name}' is not connected"))
-    import networkx as nx
+    import networkx as nx  # imported on first validation only: it is slow to import
 
     g = nx.DiGraph()
     for a, b, c in edges:
@@ -154,13 +162,12 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
                                     "(is the io plugin installed and not blocked?)"))
         else:
             resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
+    problems += check_paths(spec, registry)
     return problems
 
 
 def build(spec: GraphSpec, registry: Registry) -> Network:
     """Instantiate and wire the components of a validated ``spec``."""
-    from .graph import GraphError
-
     net = Network(name=spec.name)
     net.metadata["graph"] = spec.resolved()
     for c in spec.components.values():
@@ -191,8 +198,6 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
     try:
         net.order()
     except CycleError as e:
-        from .graph import Problem
-
         raise GraphError([Problem(None, str(e))]) from None
     return net
 

@@ -16,6 +16,10 @@ Lifecycle (RTMaps Birth/Core/Death): ``start()`` once before the first sample,
 periodic timer that fired), ``flush(t)`` once when the inputs are exhausted (it may still
 emit: a final map, a partial turn), ``stop()`` once at the end, even when the run is
 interrupted or another component failed: that is where summaries and reports are written.
+``stop()`` also runs when the component's own ``start()`` raised, so it can release what
+``start()`` took (write it to cope with a half-done start); ``summary()`` is asked only of
+components whose ``start()`` returned. Data emitted on an output must fit its declared type
+(checked by class; see :mod:`impala_flow.ports`).
 
 A :class:`Source` has no inputs; its :meth:`Source.generate` yields ``(t_ns, port,
 data)`` in non-decreasing time. Offline, the executor pulls the earliest pending sample
@@ -38,7 +42,7 @@ from typing import Any, ClassVar
 from .ports import OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
 
 __all__ = [
-    "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED",
+    "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
 ]
 
 log = logging.getLogger("impala_flow")
@@ -52,6 +56,10 @@ class _Required:
 REQUIRED: Any = _Required()
 
 
+#: kinds of path parameter: ``Param(str, path=KIND)``
+PATH_KINDS = ("read", "write", "write_dir", "read_or_name")
+
+
 class ParamError(ValueError):
     """A parameter value that does not fit its declaration."""
 
@@ -62,13 +70,24 @@ class Param:
     ``type`` is one of int, float, str, bool, list, dict. Bounds ``ge``/``gt``/``le``/
     ``lt`` apply to numbers (and to every element of a list of numbers); ``choices``
     lists the accepted values. Without a default the parameter is required.
+
+    ``path`` marks a ``str`` parameter that names a file or folder (see :data:`PATH_KINDS`):
+    ``"read"`` a file the component reads, ``"write"`` a file it writes, ``"write_dir"`` a
+    folder it writes into, ``"read_or_name"`` either a built-in name or a file it reads (a
+    value with a '/' or a file suffix is a file). In a graph, a relative path is resolved
+    against the folder of the graph file it is written in (the working directory for a
+    ``--set``/``--var`` value); validation refuses an output that overwrites an input and
+    an output folder that cannot be created.
     """
 
     def __init__(
         self, type: type = float, default: Any = REQUIRED, *, ge: float | None = None,
         gt: float | None = None, le: float | None = None, lt: float | None = None,
-        choices: tuple | list | None = None, doc: str = "",
+        choices: tuple | list | None = None, doc: str = "", path: str | None = None,
     ) -> None:
+        if path is not None and (path not in PATH_KINDS or type is not str):
+            raise ValueError(f"Param path must be one of {PATH_KINDS} on a str parameter, got {path!r}")
+        self.path = path
         self.type = type
         self.default = default
         self.ge, self.gt, self.le, self.lt = ge, gt, le, lt
@@ -321,13 +340,15 @@ class Component:
         Not called after an error or an interrupt."""
 
     def stop(self) -> None:
-        """Called once at the end of the run, also after an error or an interrupt."""
+        """Called once at the end of the run, also after an error or an interrupt, and
+        after this component's own ``start()`` raised (release what it took)."""
 
     def on_time_jump(self, offset_ns: int) -> None:
         """Called when a source announces a jump of the mission clock (a replay loop)."""
 
     def summary(self) -> dict[str, Any]:
-        """Figures this component wants printed in the run summary."""
+        """Figures this component wants printed in the run summary (asked after ``stop()``,
+        only if ``start()`` returned; an exception here is reported on its own line)."""
         return {}
 
     def __repr__(self) -> str:

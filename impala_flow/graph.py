@@ -1,160 +1,177 @@
-"""Graphs in YAML: loading (include, ${variables}, --set overrides), validation, building.
+"""Graphs in YAML: loading (include, ${variables}, --set overrides), then validation.
 
 .. code-block:: yaml
 
     name: rslam-replay
-    variables: {mission: missions/beynes.mcap}
+    variables: {mission: missions/beynes.mcap, out: out/rslam, log: "${out}/log"}
     clock: {mode: replay, speed: max}      # mode: replay | realtime; speed: max | factor
     components:
       mission: {type: io.Replayer, params: {path: "${mission}"}}
       slam: {type: slam.RSlam, on_error: stop}   # on_error: stop | skip
     connections:
       - mission.radar/beams -> slam.beams        # "a.out -> b.in"; "[delay]" breaks a cycle
-    record: {path: out/run.mcap, streams: ["slam.*"]}
+    record: {path: "${out}/run.mcap", streams: ["slam.*"]}
 
-Validation reports every problem at once, each with file:line:col. The YAML is read
-with the safe loader only.
+- ``include:`` merges other files first (relative to the including file; a file included
+  twice is merged once). A component id defined again with a ``type`` is an error naming
+  both places unless written with ``override: true`` (it then replaces the included one);
+  without ``type`` it refines the included component's parameters. A connection written
+  twice (in one file or across includes) is an error.
+- ``${name}`` is replaced by the variable's value, also inside other variables' values
+  (a cycle is an error). Caller variables (``--var``) win over the files' and must name
+  a variable the graph declares or uses.
+- Relative paths in path parameters (``Param(str, path=...)``) and in ``record.path``
+  resolve against the folder of the file they are written in, unless the value starts with
+  a variable given on the command line or comes from ``--set``: those stay relative to the
+  working directory.
+
+Validation (:func:`impala_flow.build.validate`) reports every problem at once, each with
+file:line:col. The YAML is read with the safe loader only (see :mod:`impala_flow.yamlloc`).
 """
 
 from __future__ import annotations
 
-import difflib
 import re
-from collections.abc import Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from .build import validate
+from .paths import resolve_paths
 from .registry import Registry
-from .yamlloc import Loc, LocDict, LocList, YamlError, load_value, load_yaml
+from .spec import (
+    CONNECTION,
+    ComponentSpec,
+    ConnectionSpec,
+    GraphError,
+    GraphSpec,
+    Problem,
+    checked_speed,
+    closest,
+    component_id_problem,
+    did_you_mean,
+)
+from .yamlloc import MAX_BYTES, Loc, LocDict, LocList, YamlError, load_value, load_yaml
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
     "load_graph_text", "resolve_graph", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
+    "MAX_GRAPH_BYTES",
 ]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
-COMPONENT_KEYS = ("type", "params", "on_error", "description")
+COMPONENT_KEYS = ("type", "params", "on_error", "description", "override")
 CLOCK_KEYS = ("mode", "speed")
 RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxsize", "flush_period_s")
+#: most bytes of a graph with all its includes (validation stays well under a second)
+MAX_GRAPH_BYTES = 2 * MAX_BYTES
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
-_CONN = re.compile(r"^\s*([^.\s]+)\.(\S+)\s*->\s*([^.\s]+)\.(\S+?)\s*(\[delay\])?\s*$")
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_CONN = CONNECTION  # kept for impala_flow.testing
+
+Lookup = Callable[[str, "Loc | None"], tuple[bool, Any]]
 
 
-def closest(word: str, choices: Iterable[str], n: int = 1) -> str | None:
-    m = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.5)
-    return ", ".join(m) if m else None
+# ----------------------------------------------------------------------------------
+# variables
+
+def _subst(value: Any, lookup: Lookup, loc: Loc | None, problems: list[Problem]) -> Any:
+    """``value`` with every ``${name}`` replaced (a whole ``${name}`` keeps the value's type)."""
+    if isinstance(value, str):
+        if "${" not in value:
+            return value
+        m = _VAR.fullmatch(value)
+        if m:
+            found, v = lookup(m.group(1), loc)
+            return v if found else value
+
+        def rep(mm: re.Match) -> str:
+            found, v = lookup(mm.group(1), loc)
+            return str(v) if found else mm.group(0)
+
+        return _VAR.sub(rep, value)
+    if isinstance(value, LocDict):
+        out = LocDict({k: _subst(v, lookup, value.value_where(k), problems) for k, v in value.items()})
+        out.loc, out.key_locs, out.value_locs = value.loc, value.key_locs, value.value_locs
+        return out
+    if isinstance(value, LocList):
+        out2 = LocList(_subst(v, lookup, value.where(i), problems) for i, v in enumerate(value))
+        out2.loc, out2.item_locs = value.loc, value.item_locs
+        return out2
+    if isinstance(value, dict):
+        return {k: _subst(v, lookup, loc, problems) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_subst(v, lookup, loc, problems) for v in value]
+    return value
 
 
-def did_you_mean(hint: str | None, otherwise: str = "") -> str:
-    return f" (did you mean '{hint}'?)" if hint else otherwise
+def _names_used(value: Any, out: set[str]) -> None:
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, str):
+            out.update(_VAR.findall(v))
+        elif isinstance(v, dict):
+            stack += [*v.keys(), *v.values()]
+        elif isinstance(v, list):
+            stack += v
 
 
-@dataclass(frozen=True)
-class Problem:
-    loc: Loc | None
-    message: str
-
-    def __str__(self) -> str:
-        return f"{self.loc}: {self.message}" if self.loc else self.message
-
-
-class GraphError(ValueError):
-    """A graph that cannot run; ``problems`` lists every problem found, with locations."""
+class _Variables:
+    """The graph's variables: raw values by name (files in order, then the caller's),
+    substituted on first use, cycles reported."""
 
     def __init__(self, problems: list[Problem]) -> None:
+        self.raw: dict[str, Any] = {}
+        self.locs: dict[str, Loc | None] = {}
+        self.from_caller: set[str] = set()
+        self.values: dict[str, Any] = {}
         self.problems = problems
-        n = len(problems)
-        head = str(problems[0]) if n == 1 else f"{n} problems in graph:\n" + "\n".join(f"  {p}" for p in problems)
-        super().__init__(head)
+        self._active: list[str] = []
 
+    def lookup(self, name: str, loc: Loc | None) -> tuple[bool, Any]:
+        if name in self.values:
+            return True, self.values[name]
+        if name not in self.raw:
+            self.problems.append(Problem(loc, f"undefined variable '${{{name}}}'"))
+            return False, None
+        if name in self._active:
+            cycle = " -> ".join([*self._active[self._active.index(name):], name])
+            self.problems.append(Problem(self.locs.get(name), f"variable cycle: {cycle}"))
+            return False, None
+        self._active.append(name)
+        try:
+            value = _subst(self.raw[name], self.lookup, self.locs.get(name), self.problems)
+        finally:
+            self._active.pop()
+        self.values[name] = value
+        return True, value
 
-@dataclass
-class ComponentSpec:
-    id: str
-    type: str
-    params: dict[str, Any]
-    on_error: str = "stop"
-    loc: Loc | None = None
-    param_locs: dict[str, Loc] = field(default_factory=dict)
+    def resolve_all(self) -> dict[str, Any]:
+        for name in list(self.raw):
+            self.lookup(name, self.locs.get(name))
+        return dict(self.values)
 
-
-@dataclass
-class ConnectionSpec:
-    src: str
-    out: str
-    dst: str
-    inp: str
-    delayed: bool = False
-    loc: Loc | None = None
-
-    def __str__(self) -> str:
-        return f"{self.src}.{self.out} -> {self.dst}.{self.inp}" + (" [delay]" if self.delayed else "")
-
-
-@dataclass
-class GraphSpec:
-    name: str = "graph"
-    file: str = "<memory>"
-    description: str = ""
-    clock_mode: str = "replay"
-    speed: Any = "max"
-    components: dict[str, ComponentSpec] = field(default_factory=dict)
-    connections: list[ConnectionSpec] = field(default_factory=list)
-    record: dict[str, Any] | None = None
-    record_loc: Loc | None = None
-    variables: dict[str, Any] = field(default_factory=dict)
-    source_text: str = ""
-
-    def resolved(self) -> dict[str, Any]:
-        """The graph as plain data with every include, variable and override applied."""
-        return {
-            "name": self.name,
-            "clock": {"mode": self.clock_mode, "speed": self.speed},
-            "components": {
-                c.id: {"type": c.type, "params": dict(c.params), "on_error": c.on_error}
-                for c in self.components.values()
-            },
-            "connections": [str(c) for c in self.connections],
-            **({"record": dict(self.record)} if self.record else {}),
-        }
+    def from_command_line(self, value: Any) -> bool:
+        """Whether a raw string value starts with a caller variable (itself, or through
+        the variables it starts with): its relative path is the working directory's."""
+        seen: set[str] = set()
+        while isinstance(value, str):
+            m = _VAR.match(value)
+            if not m or m.group(1) in seen:
+                return False
+            name = m.group(1)
+            if name in self.from_caller:
+                return True
+            seen.add(name)
+            value = self.raw.get(name)
+        return False
 
 
 # ----------------------------------------------------------------------------------
 # loading
-
-def _subst(value: Any, variables: dict[str, Any], loc: Loc | None, problems: list[Problem]) -> Any:
-    if isinstance(value, str):
-        m = _VAR.fullmatch(value)
-        if m:
-            if m.group(1) not in variables:
-                problems.append(Problem(loc, f"undefined variable '${{{m.group(1)}}}'"))
-                return value
-            return variables[m.group(1)]
-
-        def rep(mm: re.Match) -> str:
-            if mm.group(1) not in variables:
-                problems.append(Problem(loc, f"undefined variable '${{{mm.group(1)}}}'"))
-                return mm.group(0)
-            return str(variables[mm.group(1)])
-
-        return _VAR.sub(rep, value)
-    if isinstance(value, LocDict):
-        out = LocDict({k: _subst(v, variables, value.value_where(k), problems) for k, v in value.items()})
-        out.loc, out.key_locs, out.value_locs = value.loc, value.key_locs, value.value_locs
-        return out
-    if isinstance(value, LocList):
-        out2 = LocList(_subst(v, variables, value.where(i), problems) for i, v in enumerate(value))
-        out2.loc, out2.item_locs = value.loc, value.item_locs
-        return out2
-    if isinstance(value, dict):
-        return {k: _subst(v, variables, loc, problems) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_subst(v, variables, loc, problems) for v in value]
-    return value
-
 
 def _check_keys(d: LocDict, allowed: Iterable[str], what: str, problems: list[Problem]) -> None:
     allowed = tuple(allowed)
@@ -173,13 +190,24 @@ def parse_set(item: str) -> tuple[str, str, Any]:
     comp, param = key.split(".", 1)
     try:
         value = load_value(raw)
+    except YamlError as e:
+        raise GraphError([Problem(None, f"--set {item}: {e}")]) from None
     except yaml.YAMLError:
-        value = raw
+        value = raw  # not YAML: the text itself
     return comp.strip(), param.strip(), value
 
 
-def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...]) -> tuple[LocDict, list[tuple[LocDict, Path]]]:
-    """Read ``path`` and, depth first, its includes. Returns (doc, [(included doc, path)])."""
+def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...], done: set[Path],
+          budget: list[int]) -> tuple[LocDict, list[tuple[LocDict, Path]]]:
+    """Read ``path`` and, depth first, its includes (each file once). Returns (doc, [(included
+    doc, path)]). ``budget`` holds the bytes the graph may still read."""
+    try:
+        budget[0] -= path.stat().st_size
+    except OSError:
+        pass  # load_yaml says why it cannot read it
+    if budget[0] < 0:
+        raise GraphError([Problem(Loc(str(path), 1, 1), f"the graph and its includes exceed "
+                                  f"{MAX_GRAPH_BYTES // 1024} kB: not a graph")])
     doc = load_yaml(path)
     if not isinstance(doc, LocDict):
         raise GraphError([Problem(Loc(str(path), 1, 1), "a graph file must be a mapping (name:, components:, ...)")])
@@ -196,20 +224,25 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...]) -> tuple[
             if p in seen:
                 problems.append(Problem(loc, f"include cycle: {item} is already being included"))
                 continue
-            if not p.exists():
+            if p in done:
+                continue  # included already through another file: merged once
+            if not p.is_file():
                 problems.append(Problem(loc, f"included file not found: {item}"))
                 continue
-            sub, subchain = _read(p, problems, (*seen, p))
+            done.add(p)
+            sub, subchain = _read(p, problems, (*seen, p), done, budget)
             chain += subchain + [(sub, p)]
     return doc, chain
 
 
 def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = (),
                variables: dict[str, Any] | None = None, text: str | None = None) -> GraphSpec:
-    """Load and validate a graph file; raise :class:`GraphError` with every problem."""
-    from .build import validate
+    """Load and validate a graph file; raise :class:`GraphError` with every problem.
 
+    ``variables`` are the caller's (``--var``): they win over the files' and a relative path
+    starting with one of them stays relative to the working directory."""
     spec, problems = resolve_graph(path, overrides, variables, text)
+    problems += resolve_paths(spec, registry)
     problems += validate(spec, registry)
     if problems:
         raise GraphError(problems)
@@ -219,8 +252,8 @@ def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = 
 def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,
                   text: str | None = None) -> tuple[GraphSpec, list[Problem]]:
     """Read a graph with its includes, variables and overrides applied, not yet checked
-    against the plugins: (spec, problems found so far). A file that cannot be read at all
-    raises :class:`GraphError`."""
+    against the plugins (so path parameters are not resolved yet): (spec, problems found so
+    far). A file that cannot be read at all raises :class:`GraphError`."""
     problems: list[Problem] = []
     path = Path(path)
     try:
@@ -230,21 +263,52 @@ def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: di
             if not isinstance(doc, LocDict):
                 raise GraphError([Problem(Loc(str(path), 1, 1), "a graph file must be a mapping")])
         else:
-            doc, chain = _read(path.resolve(), problems, (path.resolve(),))
+            top = path.resolve()
+            doc, chain = _read(top, problems, (top,), {top}, [MAX_GRAPH_BYTES])
     except YamlError as e:
         raise GraphError([Problem(None, str(e))]) from None
     spec = GraphSpec(name=path.stem, file=str(path))
-    spec.source_text = text if text is not None else (path.read_text(encoding="utf-8") if path.exists() else "")
+    if text is not None:
+        spec.source_text = text
+    else:
+        try:
+            spec.source_text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeError):
+            spec.source_text = ""
+    docs = chain + [(doc, path)]
+    folders = [str(p.parent) for _, p in docs]  # the main file's as given, the includes' absolute
     # variables: included files first, then this file, then the caller's
-    for d, _ in chain + [(doc, path)]:
+    var = _Variables(problems)
+    used: set[str] = set()
+    for d, _ in docs:
         v = d.get("variables")
-        if isinstance(v, dict):
-            spec.variables.update(v)
+        if isinstance(v, LocDict):
+            for k, val in v.items():
+                if not isinstance(k, str) or not _NAME.match(k):
+                    problems.append(Problem(v.where(k), f"variable name {k!r} must be a name like out_dir "
+                                                        "(letters, digits, '_')"))
+                    continue
+                var.raw[k], var.locs[k] = val, v.value_where(k)
         elif v is not None:
             problems.append(Problem(d.value_where("variables"), "variables must be a mapping NAME: value"))
-    spec.variables.update(variables or {})
-    for d, _ in chain + [(doc, path)]:
-        _merge(spec, _subst(d, spec.variables, d.loc, problems), problems)
+        _names_used(d, used)
+    known = set(var.raw) | used
+    for k, val in (variables or {}).items():
+        if k not in known:
+            hint = closest(k, known, n=3)
+            problems.append(Problem(None, f"--var {k}: the graph has no variable '{k}'"
+                                    + (f" (closest: {hint})" if hint else
+                                       f" (variables: {', '.join(sorted(known)) or 'none'})")))
+            continue
+        var.raw[k], var.locs[k] = val, None
+        var.from_caller.add(k)
+    spec.variables = var.resolve_all()
+    for (d, _), folder in zip(docs, folders, strict=True):
+        body = LocDict({k: v for k, v in d.items() if k != "variables"})  # variables: substituted above
+        body.loc, body.key_locs, body.value_locs = d.loc, d.key_locs, d.value_locs
+        _merge(spec, _subst(body, var.lookup, d.loc, problems), problems)
+        _note_bases(spec, d, folder, var)
+    _check_duplicate_connections(spec, problems)
     for item in overrides:
         try:
             comp, param, value = parse_set(item)
@@ -256,7 +320,36 @@ def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: di
             problems.append(Problem(None, f"--set {item}: no component '{comp}'" + did_you_mean(hint)))
             continue
         spec.components[comp].params[param] = value
+        spec.components[comp].param_bases[param] = ""  # the working directory
     return spec, problems
+
+
+def _note_bases(spec: GraphSpec, d: LocDict, folder: str, var: _Variables) -> None:
+    """Record the folder each (raw) parameter and record path of ``d`` is relative to."""
+    def base(raw: Any) -> str:
+        return "" if var.from_command_line(raw) else folder
+
+    comps = d.get("components")
+    if isinstance(comps, LocDict):
+        for cid, c in comps.items():
+            params = c.get("params") if isinstance(c, LocDict) else None
+            if isinstance(params, LocDict) and cid in spec.components:
+                for k, raw in params.items():
+                    spec.components[cid].param_bases[k] = base(raw)
+    rec = d.get("record")
+    if isinstance(rec, LocDict) and "path" in rec:
+        spec.record_base = base(rec["path"])
+
+
+def _check_duplicate_connections(spec: GraphSpec, problems: list[Problem]) -> None:
+    first: dict[tuple[str, str, str, str], ConnectionSpec] = {}
+    for c in spec.connections:
+        key = (c.src, c.out, c.dst, c.inp)
+        if key in first:
+            problems.append(Problem(c.loc, f"duplicate connection '{c}': already written at {first[key].loc} "
+                                           "(every sample would be delivered twice)"))
+        else:
+            first[key] = c
 
 
 def load_graph_text(text: str, registry: Registry, name: str = "<graph>", **kw: Any) -> GraphSpec:
@@ -282,9 +375,8 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
                                         f"clock mode must be 'replay' or 'realtime', got {mode!r}"))
             spec.clock_mode = mode
             if "speed" in clock:
-                from .clock import parse_speed
                 try:
-                    parse_speed(clock["speed"])
+                    checked_speed(clock["speed"])
                     spec.speed = clock["speed"]
                 except ValueError as e:
                     problems.append(Problem(clock.value_where("speed"), str(e)))
@@ -295,7 +387,7 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
                                     "components must be a mapping ID: {type: ..., params: ...}"))
         else:
             for cid, c in comps.items():
-                _merge_component(spec, str(cid), c, comps.where(cid), problems)
+                _merge_component(spec, cid, c, comps.where(cid), problems)
     conns = d.get("connections")
     if conns is not None:
         if not isinstance(conns, LocList):
@@ -316,9 +408,10 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
             spec.record, spec.record_loc = dict(rec), rec.loc
 
 
-def _merge_component(spec: GraphSpec, cid: str, c: Any, loc: Loc, problems: list[Problem]) -> None:
-    if "." in cid or "/" in cid or not cid:
-        problems.append(Problem(loc, f"component id '{cid}' must not be empty nor contain '.' or '/'"))
+def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problems: list[Problem]) -> None:
+    bad = component_id_problem(cid)
+    if bad:
+        problems.append(Problem(loc, bad))
         return
     if isinstance(c, str):  # shorthand  id: type.Name
         c = LocDict(type=c)
@@ -331,14 +424,26 @@ def _merge_component(spec: GraphSpec, cid: str, c: Any, loc: Loc, problems: list
     if not isinstance(params, dict):
         problems.append(Problem(c.value_where("params"), f"component '{cid}': params must be a mapping"))
         params = LocDict()
+    override = c.get("override", False)
+    if not isinstance(override, bool):
+        problems.append(Problem(c.value_where("override"), f"component '{cid}': override must be true or false, "
+                                                           f"got {override!r}"))
+        override = False
     old = spec.components.get(cid)
-    if old is not None and "type" not in c:  # an includer refining an included component
+    if old is not None and "type" not in c and not override:  # an includer refining an included component
         old.params.update(params)
         if isinstance(params, LocDict):
             old.param_locs.update(params.key_locs)
         if "on_error" in c:
             old.on_error = c["on_error"]
         return
+    if old is not None and not override:
+        problems.append(Problem(loc, f"component '{cid}' is already defined at {old.def_loc}: write "
+                                     "'override: true' to replace it, or leave out 'type' to refine its params"))
+        return
+    if old is None and override:
+        problems.append(Problem(c.value_where("override"), f"component '{cid}': override: true, but no "
+                                                           f"included file defines a component '{cid}'"))
     if "type" not in c:
         problems.append(Problem(loc, f"component '{cid}' has no 'type'"))
         return
@@ -348,11 +453,11 @@ def _merge_component(spec: GraphSpec, cid: str, c: Any, loc: Loc, problems: list
                                 f"component '{cid}': on_error must be 'stop' or 'skip', got {on_error!r}"))
     spec.components[cid] = ComponentSpec(
         cid, str(c["type"]), dict(params), on_error, c.where("type"),
-        dict(params.key_locs) if isinstance(params, LocDict) else {},
+        dict(params.key_locs) if isinstance(params, LocDict) else {}, loc,
     )
 
 
-def _parse_connection(item: Any, loc: Loc, problems: list[Problem]) -> ConnectionSpec | None:
+def _parse_connection(item: Any, loc: Loc | None, problems: list[Problem]) -> ConnectionSpec | None:
     if isinstance(item, dict):
         extra = set(item) - {"from", "to", "delay"}
         if extra or "from" not in item or "to" not in item:
@@ -362,7 +467,7 @@ def _parse_connection(item: Any, loc: Loc, problems: list[Problem]) -> Connectio
     if not isinstance(item, str):
         problems.append(Problem(loc, f"a connection is 'component.output -> component.input', got {item!r}"))
         return None
-    m = _CONN.match(item)
+    m = CONNECTION.match(item)
     if not m:
         problems.append(Problem(loc, f"cannot read connection {item!r}: "
                                      "expected 'component.output -> component.input'"))

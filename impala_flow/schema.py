@@ -22,6 +22,7 @@ from typing import Any
 from . import __version__
 from .component import Component, Param
 from .registry import Registry
+from .spec import MIN_SPEED
 
 __all__ = ["graph_schema", "CONNECTION_PATTERN", "VARIABLE_PATTERN"]
 
@@ -129,6 +130,9 @@ def _component_schema(registry: Registry, rules: list[dict[str, Any]]) -> dict[s
         "on_error": {"enum": ["stop", "skip"], "default": "stop",
                      "description": "stop: an exception stops the graph; skip: the sample is skipped and counted"},
         "description": {"type": "string"},
+        "override": {"type": "boolean", "default": False,
+                     "description": "replace the component of the same id defined in an included file "
+                                    "(without it, defining an id twice is an error)"},
     }
     obj: dict[str, Any] = {
         "type": "object", "properties": props, "additionalProperties": False,
@@ -181,7 +185,7 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                          "description": "replay: deterministic offline executor; realtime: live sources"},
                 "speed": _or_variable({
                     "default": "max", "description": "replay speed: 'max' or a factor (1 = real time)",
-                    "anyOf": [{"const": "max"}, {"type": "number", "exclusiveMinimum": 0}]}),
+                    "anyOf": [{"const": "max"}, {"type": "number", "minimum": MIN_SPEED}]}),
             },
         },
         "components": {

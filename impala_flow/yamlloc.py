@@ -1,4 +1,15 @@
-"""Safe YAML loading that remembers where every key and value came from (file:line:col)."""
+"""Safe YAML loading that remembers where every key and value came from (file:line:col).
+
+Scalars are read with the YAML 1.2 core schema, not PyYAML's YAML 1.1 one: ``1:30`` and
+``2024-01-01`` stay strings, ``yes``/``no``/``on``/``off`` stay strings, ``1e-4`` is a
+float, ``0o17`` and ``0x1F`` are integers. An integer written with a leading zero
+(``010``: octal 8 in YAML 1.1, decimal 10 in YAML 1.2) is refused with its location.
+
+A graph file is small: it is refused past :data:`MAX_BYTES`, past :data:`MAX_DEPTH`
+levels of nesting, or when its aliases (``*name``) would expand it to more than
+:data:`MAX_VALUES` values (an "alias bomb"); a recursive alias is refused too. Each
+node is converted once: an alias shares the object of its anchor.
+"""
 
 from __future__ import annotations
 
@@ -9,24 +20,143 @@ from typing import Any
 
 import yaml
 
-__all__ = ["Loc", "LocDict", "LocList", "load_yaml", "load_value", "YamlError", "Loader"]
+__all__ = ["Loc", "LocDict", "LocList", "load_yaml", "load_value", "YamlError", "Loader",
+           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES"]
+
+#: largest graph file read (bytes): a graph is a few kB; this keeps validation under a second
+MAX_BYTES = 64 << 10
+#: deepest nesting of mappings and lists, aliases expanded
+MAX_DEPTH = 64
+#: most values (scalars, mappings, lists) of one file once its aliases are expanded
+MAX_VALUES = 50_000
+
+_TAG = "tag:yaml.org,2002:"
+_INT = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
+_FLOAT = re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+                    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$")
 
 
-class Loader(yaml.SafeLoader):
-    """The safe loader, reading floats as YAML 1.2 does (``1e-4`` is a float, not a string)."""
+class YamlError(ValueError):
+    """The file is not valid YAML (one line, with file:line:col)."""
 
 
-Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
+class _PyEvents(yaml.SafeLoader):
+    def fetch_flow_collection_start(self, token_class: Any) -> None:
+        # the scanner looks ahead through every open bracket before the composer sees
+        # the first one: bound them here, or "[[[[..." scans in quadratic time. Below a
+        # block mapping (a graph's root, level 1) a bracket opened at flow level f is level
+        # f + 2 or deeper: the first past MAX_DEPTH is the one opened at MAX_DEPTH - 1
+        if self.flow_level >= MAX_DEPTH - 1:
+            raise yaml.scanner.ScannerError(None, None, f"nested more than {MAX_DEPTH} levels deep",
+                                            self.get_mark())
+        super().fetch_flow_collection_start(token_class)
+
+
+try:  # libyaml parses the events (ten times faster); composing stays in Python, bounded
+    from yaml._yaml import CParser as _Parser
+
+    class _Events(yaml.composer.Composer, _Parser, yaml.constructor.SafeConstructor,  # type: ignore[misc]
+                  yaml.resolver.Resolver):
+        def __init__(self, stream: str) -> None:
+            _Parser.__init__(self, stream)
+            yaml.constructor.SafeConstructor.__init__(self)
+            yaml.resolver.Resolver.__init__(self)
+            yaml.composer.Composer.__init__(self)
+except ImportError:  # pragma: no cover - PyYAML built without libyaml
+    _Events = _PyEvents  # type: ignore[misc,assignment]
+
+
+class _Bounded:
+    """Nesting bounded while composing (mixed into both loaders)."""
+
+    max_depth = MAX_DEPTH
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)  # type: ignore[call-arg]
+        self._depth = 0
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        self._depth += 1
+        try:
+            if self._depth > self.max_depth:
+                mark = self.peek_event().start_mark  # type: ignore[attr-defined]
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested more than {self.max_depth} levels deep", mark)
+            return super().compose_node(parent, index)  # type: ignore[misc]
+        finally:
+            self._depth -= 1
+
+
+class Loader(_Bounded, _Events):  # type: ignore[misc]
+    """A safe loader: the YAML 1.2 core schema's scalars, nesting bounded while composing."""
+
+
+class _PyLoader(_Bounded, _PyEvents):
+    """The same in pure Python: it locates the 65th level where libyaml stops at its own 1000th."""
+
+
+Loader.yaml_implicit_resolvers = {}
+_PyLoader.yaml_implicit_resolvers = {}
+for _tag, _regex, _first in (
+    ("null", r"^(?:~|null|Null|NULL|)$", ["~", "n", "N", ""]),
+    ("bool", r"^(?:true|True|TRUE|false|False|FALSE)$", list("tTfF")),
+    ("int", _INT.pattern, list("-+0123456789")),  # before float: "10" is an int
+    ("float", _FLOAT.pattern, list("-+0123456789.")),
+    ("merge", r"^(?:<<)$", ["<"]),
+):
+    for _cls in (Loader, _PyLoader):
+        _cls.add_implicit_resolver(_TAG + _tag, re.compile(_regex), _first)
+
+
+def _construct_int(loader: Loader, node: yaml.ScalarNode) -> int:
+    text = str(loader.construct_scalar(node))
+    if not _INT.match(text):
+        raise yaml.constructor.ConstructorError(None, None, f"{text!r} is not an integer", node.start_mark)
+    if text.startswith(("0o", "0x")):
+        return int(text[2:], 8 if text[1] == "o" else 16)
+    digits = text.lstrip("+-")
+    if len(digits) > 1 and digits[0] == "0":
+        octal = f"octal {int(digits, 8)}" if set(digits) <= set("01234567") else "an error"
+        raise yaml.constructor.ConstructorError(
+            None, None, f"'{text}': a leading zero is ambiguous (YAML 1.1 reads {octal}, YAML 1.2 "
+            f"{int(text)}): write {int(text)}, 0o{digits.lstrip('0') or '0'} for octal, or quote it", node.start_mark)
+    return int(text)
+
+
+def _construct_float(loader: Loader, node: yaml.ScalarNode) -> float:
+    text = str(loader.construct_scalar(node))
+    low = text.lower()
+    if low.endswith((".inf", ".nan")):
+        return float(low.replace(".", ""))
+    try:
+        return float(text)
+    except ValueError:
+        raise yaml.constructor.ConstructorError(None, None, f"{text!r} is not a number", node.start_mark) from None
+
+
+def _construct_bool(loader: Loader, node: yaml.ScalarNode) -> bool:
+    return str(loader.construct_scalar(node)).lower() == "true"
+
+
+for _cls in (Loader, _PyLoader):
+    _cls.add_constructor(_TAG + "int", _construct_int)
+    _cls.add_constructor(_TAG + "float", _construct_float)
+    _cls.add_constructor(_TAG + "bool", _construct_bool)
 
 
 def load_value(text: str) -> Any:
-    """One value from the command line (``--set k=1e-4``): YAML scalar or flow collection."""
-    return yaml.load(text, Loader=Loader) if text.strip() else ""  # noqa: S506 - Loader is a SafeLoader
+    """One value from the command line (``--set k=1e-4``): YAML scalar or flow collection.
+
+    A value the YAML 1.2 core schema refuses (``010``) raises :class:`YamlError`; text that
+    is not YAML at all raises ``yaml.YAMLError``."""
+    if not text.strip():
+        return ""
+    if len(text) > MAX_BYTES:
+        raise YamlError(f"value longer than {MAX_BYTES // 1024} kB")
+    try:
+        return yaml.load(text, Loader=Loader)  # noqa: S506 - Loader is a SafeLoader
+    except yaml.constructor.ConstructorError as e:
+        raise YamlError(str(e.problem)) from None
 
 
 @dataclass(frozen=True)
@@ -37,10 +167,6 @@ class Loc:
 
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}"
-
-
-class YamlError(ValueError):
-    """The file is not valid YAML (one line, with file:line:col)."""
 
 
 class LocDict(dict):
@@ -76,26 +202,79 @@ def _loc(file: str, node: yaml.Node) -> Loc:
 _PLAIN_TAGS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq", "tag:yaml.org,2002:omap")
 
 
-def _convert(loader: Loader, node: yaml.Node, file: str) -> Any:
+def _measure(loader: Loader, node: yaml.Node, file: str, depth: int, memo: dict[int, tuple[int, int]],
+             active: set[int]) -> tuple[int, int]:
+    """(values, height) of ``node`` with its aliases expanded; each node is walked once."""
+    if depth > MAX_DEPTH:
+        raise YamlError(f"{_loc(file, node)}: invalid YAML: nested more than {MAX_DEPTH} levels deep "
+                        "once its aliases are expanded")
+    key = id(node)
+    if key in memo:
+        size, height = memo[key]
+        if depth + height > MAX_DEPTH:
+            raise YamlError(f"{_loc(file, node)}: invalid YAML: nested more than {MAX_DEPTH} levels deep "
+                            "once its aliases are expanded")
+        return size, height
+    if key in active:
+        raise YamlError(f"{_loc(file, node)}: invalid YAML: recursive alias (a node that contains itself)")
+    size, height = 1, 0
+    if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        if isinstance(node, yaml.MappingNode):
+            loader.flatten_mapping(node)  # resolves YAML merge keys (<<)
+            children = [n for pair in node.value for n in pair]
+        else:
+            children = node.value
+        active.add(key)
+        for child in children:
+            s, h = _measure(loader, child, file, depth + 1, memo, active)
+            size, height = size + s, max(height, h + 1)
+            if size > MAX_VALUES:
+                raise YamlError(f"{_loc(file, node)}: invalid YAML: expands to more than {MAX_VALUES} values "
+                                "(aliases repeated inside aliases?)")
+        active.discard(key)
+    memo[key] = (size, height)
+    return size, height
+
+
+def _convert(loader: Loader, node: yaml.Node, file: str, memo: dict[int, Any]) -> Any:
+    key = id(node)
+    if key in memo:  # an alias: the object of its anchor, converted once
+        return memo[key]
     if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:
         raise YamlError(f"{_loc(file, node)}: invalid YAML: tag '{node.tag}' is not allowed (safe loader)")
     if isinstance(node, yaml.MappingNode):
-        loader.flatten_mapping(node)  # resolves YAML merge keys (<<)
         d = LocDict()
         d.loc, d.key_locs, d.value_locs = _loc(file, node), {}, {}
         for knode, vnode in node.value:
-            key = loader.construct_object(knode, deep=True)
-            if key in d:
-                raise YamlError(f"{_loc(file, knode)}: duplicate key '{key}'")
-            d[key] = _convert(loader, vnode, file)
-            d.key_locs[key] = _loc(file, knode)
-            d.value_locs[key] = _loc(file, vnode)
-        return d
-    if isinstance(node, yaml.SequenceNode):
-        lst = LocList(_convert(loader, n, file) for n in node.value)
+            k = loader.construct_object(knode, deep=True)
+            try:
+                hash(k)
+            except TypeError:
+                raise YamlError(f"{_loc(file, knode)}: invalid YAML: a key must be a scalar") from None
+            if k in d:
+                raise YamlError(f"{_loc(file, knode)}: duplicate key '{k}'")
+            d[k] = _convert(loader, vnode, file, memo)
+            d.key_locs[k] = _loc(file, knode)
+            d.value_locs[k] = _loc(file, vnode)
+        out: Any = d
+    elif isinstance(node, yaml.SequenceNode):
+        lst = LocList(_convert(loader, n, file, memo) for n in node.value)
         lst.loc, lst.item_locs = _loc(file, node), [_loc(file, n) for n in node.value]
-        return lst
-    return loader.construct_object(node, deep=True)
+        out = lst
+    else:
+        out = loader.construct_object(node, deep=True)
+    memo[key] = out
+    return out
+
+
+def _decode(file: str, data: bytes) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        col = e.start - (data.rfind(b"\n", 0, e.start) + 1) + 1
+        raise YamlError(f"{file}:{line}:{col}: not UTF-8 text (byte 0x{data[e.start]:02x}); "
+                        "save the file as UTF-8") from None
 
 
 def load_yaml(path: str | Path, text: str | None = None) -> Any:
@@ -103,20 +282,43 @@ def load_yaml(path: str | Path, text: str | None = None) -> Any:
     file = str(path)
     if text is None:
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            p = Path(path)
+            if p.is_dir():
+                raise YamlError(f"{file}: is a folder, not a YAML file")
+            with p.open("rb") as f:
+                data = f.read(MAX_BYTES + 1)
         except OSError as e:
             raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
-    loader = Loader(text)
+        if len(data) > MAX_BYTES:
+            raise YamlError(f"{file}: larger than {MAX_BYTES // 1024} kB: not a graph file")
+        text = _decode(file, data)
+    elif len(text) > MAX_BYTES:
+        raise YamlError(f"{file}: larger than {MAX_BYTES // 1024} kB: not a graph file")
+    try:
+        return _load(Loader, text, file)
+    except YamlError as e:
+        if Loader is _PyLoader or "maximum nesting depth" not in str(e):
+            raise
+    # libyaml stopped at its own nesting limit (1000) before the composer's bound: the
+    # pure-Python scanner finds where the 65th level opens
+    return _load(_PyLoader, text, file)
+
+
+def _load(cls: type, text: str, file: str) -> Any:
+    loader = cls(text)
     try:
         node = loader.get_single_node()
         if node is None:
             return LocDict()
-        return _convert(loader, node, file)
+        _measure(loader, node, file, 1, {}, set())
+        return _convert(loader, node, file, {})
     except yaml.MarkedYAMLError as e:
         mark = e.problem_mark or e.context_mark
         where = f"{file}:{mark.line + 1}:{mark.column + 1}" if mark else file
         raise YamlError(f"{where}: invalid YAML: {e.problem or e.context}") from None
     except yaml.YAMLError as e:
         raise YamlError(f"{file}: invalid YAML: {e}") from None
+    except RecursionError:
+        raise YamlError(f"{file}: invalid YAML: nested too deeply") from None
     finally:
         loader.dispose()

@@ -3,20 +3,25 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Callable
 from typing import Any
 
+import yaml
+
+from ..build import RECORDER_TYPE
 from ..component import Source
-from ..graph import GraphError
 from ..network import Network
 from ..session import Session
+from ..spec import GraphError, checked_speed
 from ..summary import ComponentError, RunSummary
-from ..yamlloc import YamlError
+from ..yamlloc import YamlError, load_value
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 
-__all__ = ["add_graph_args", "open_session", "load_spec", "Progress", "run_network"]
+__all__ = ["add_graph_args", "open_session", "load_spec", "Progress", "run_network", "check_speed",
+           "check_writable_file"]
 
 
 def add_graph_args(p: argparse.ArgumentParser) -> None:
@@ -28,15 +33,45 @@ def add_graph_args(p: argparse.ArgumentParser) -> None:
 
 
 def parse_vars(items: list[str]) -> dict[str, Any]:
-    from ..yamlloc import load_value
-
+    """``--var NAME=VALUE`` items -> {name: value read as a YAML scalar or flow list}."""
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
             raise CommandError(f"--var {item!r}: expected NAME=VALUE", EXIT_USAGE)
         k, v = item.split("=", 1)
-        out[k.strip()] = load_value(v)
+        try:
+            out[k.strip()] = load_value(v)
+        except YamlError as e:
+            raise CommandError(f"--var {item}: {e}", EXIT_USAGE) from None
+        except yaml.YAMLError:  # not YAML: the text itself
+            out[k.strip()] = v
     return out
+
+
+def check_speed(value: Any) -> None:
+    """Refuse a ``--speed`` that is not 'max' nor a finite factor >= 0.001 (exit 2)."""
+    if value is None:
+        return
+    try:
+        checked_speed(value)
+    except ValueError as e:
+        raise CommandError(f"--speed: {e}", EXIT_USAGE) from None
+
+
+def check_writable_file(path: str, option: str) -> None:
+    """Refuse, before a run, an output file that cannot be written (exit 2): a folder, a file
+    without write permission, or a missing or unwritable folder."""
+    if os.path.isdir(path):
+        raise CommandError(f"{option} {path}: is a folder", EXIT_USAGE)
+    if os.path.exists(path):
+        if not os.access(path, os.W_OK):
+            raise CommandError(f"{option} {path}: not writable", EXIT_USAGE)
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise CommandError(f"{option} {path}: folder {folder} does not exist", EXIT_USAGE)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise CommandError(f"{option} {path}: cannot write in folder {folder}", EXIT_USAGE)
 
 
 def open_session() -> Session:
@@ -90,6 +125,7 @@ class Progress:
 def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = False,
                 progress: bool | None = None, on_summary: Callable[[RunSummary], None] | None = None) -> int:
     """Build and run ``spec``, show progress, print the summary, return the exit code."""
+    check_speed(speed)
     net = session.build(spec)
     bar = Progress(net, enabled=progress)
     try:
@@ -116,8 +152,6 @@ def record_source(session: Session, source: Source, path: str, topics: dict[str,
 
     Offline sources give the same samples every time, so chunks are cut by size only:
     the same source gives the same bytes."""
-    from ..build import RECORDER_TYPE
-
     rec_cls = session.registry.components.get(RECORDER_TYPE)
     if rec_cls is None:
         raise CommandError(f"recording needs the '{RECORDER_TYPE}' component (io plugin missing or blocked)")

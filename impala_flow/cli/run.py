@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._common import add_graph_args, load_spec, open_session, run_network
+from ._common import add_graph_args, check_speed, check_writable_file, load_spec, open_session, run_network
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,6 +25,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_speed(args.speed)  # usage errors first, before the plugins load and the run starts
+    if args.summary_json:
+        check_writable_file(args.summary_json, "--summary-json")
     session = open_session()
     spec = load_spec(session, args)
 

@@ -27,7 +27,7 @@ class Recorder(Component):
     resolved graph (YAML), the parameters of every component, the plugins and versions.
     """
 
-    path = Param(str, doc="MCAP file to write")
+    path = Param(str, path="write", doc="MCAP file to write")
     topics = Param(dict, default={}, doc="topic -> 'component.port' it records")
     compression = Param(str, default="zstd", choices=tuple(COMPRESSIONS),
                         doc="chunk compression")

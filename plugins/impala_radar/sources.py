@@ -152,7 +152,7 @@ class Simulator(Source):
     semi-urban, datmo, urban) or a path to a scenario YAML file.
     """
 
-    scenario = Param(str, default="beynes", doc="scenario name or YAML file")
+    scenario = Param(str, default="beynes", path="read_or_name", doc="scenario name or YAML file")
     seed = Param(int, default=-1, doc="random seed of the world and the sensor noise (-1: the scenario's)")
     duration_s = Param(float, default=0.0, ge=0.0, doc="mission duration (0: the scenario's)")
     beams = Output(RadarBeam, doc="radar beams, each at the vehicle pose of its own time")

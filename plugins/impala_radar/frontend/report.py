@@ -43,7 +43,7 @@ class FrontendReport(Component):
     image = Input(Grid, policy="sampling", required=False, doc="panoramic image before filtering")
     filtered = Input(Grid, policy="sampling", required=False, doc="panoramic image after filtering")
 
-    path = Param(str, default="out/frontend", doc="folder of the PNG files")
+    path = Param(str, default="out/frontend", path="write_dir", doc="folder of the PNG files")
     beam = Param(int, default=-1, ge=-1, doc="beam shown in pairs.png (-1: the one with most pairs)")
     dpi = Param(int, default=110, ge=30)
     extent_m = Param(float, default=60.0, gt=0, doc="half side of the PPI plots")
