@@ -1,23 +1,45 @@
 """The deterministic discrete-event executor (offline: replay and simulation).
 
 Events are processed on one thread in the order of the key
-``(timestamp, graph order, sequence)``:
+``(timestamp, graph rank, phase, sequence)``:
 
 - ``timestamp``: the sample's time (int ns). A sample stamped earlier than the current
   time is delivered at once (its key is the smallest).
-- ``graph order``: rank of the receiving component in the topological order of the
-  graph (:meth:`Network.order`); a sample crossing a delayed connection is processed
-  after every non-delayed event of the same timestamp.
+- ``graph rank``: the receiving component's position in the topological order of the
+  graph over its non-delayed connections, ties broken by component id (never by the
+  order of the YAML file); a sample crossing a delayed connection is processed after
+  every non-delayed event of the same timestamp.
+- ``phase``: at one timestamp, a component receives (its inputs are pushed) before it
+  fires (``process`` runs for reactive inputs, completed sync groups and timers).
 - ``sequence``: a counter incremented for every event scheduled. Samples with equal
   timestamps at one input are therefore processed in emission order, and a source's
   samples with equal timestamps in the order it yielded them.
 
-A sample reaches an input when its event is processed (never earlier: no input sees
-the future), and a reactive input triggers its component then. When every source is
-exhausted and every event processed, each component's ``flush(t)`` runs in graph order
-(the events it causes processed before the next one's), then every ``stop()``. The same inputs give
-the same order, hence bit-identical outputs, on any machine and at any replay speed:
-the clock only sleeps between events.
+The equal-timestamp rule
+    a component fires for time ``t`` only after every sample stamped ``<= t`` that can
+    still reach it through non-delayed connections has arrived at its inputs, whatever
+    the length of the paths and the order of the YAML file. A trigger stamped ``t`` thus
+    sees, in a ``history`` or ``sampling`` input, a sample stamped ``t`` that travelled
+    through any number of pass-through hops. (It holds because every producer of a
+    component ranks before it, and events run in key order.) Samples a component emits
+    stamped earlier than its own trigger arrive late, as they are produced; samples
+    crossing a delayed connection arrive after the non-delayed ones of their time.
+
+The trigger runs at once when nothing else can reach the component at that time (the
+common case costs one event per hop); otherwise it is queued behind the other arrivals.
+A sample reaches an input when its event is processed (never earlier: no input sees the
+future). When every source is exhausted and every event processed, each component's
+``flush(t)`` runs in graph order (the events it causes processed before the next one's),
+then every ``stop()``. The same inputs give the same order, hence bit-identical outputs,
+on any machine and at any replay speed: the clock only sleeps between events.
+
+Failures: the first error is raised, with the summary attached (``error.summary``, the
+events processed so far included); ``stop()`` runs for every component whose ``start()``
+was called, even one whose ``start()`` raised (so it can release what it took);
+``summary()`` only for those whose ``start()`` returned. A ``stop()`` or ``summary()`` that
+raises is reported on its own line (``RunSummary.errors``), never instead of the first.
+Samples still in flight when a run is interrupted or fails are counted as ``unconsumed``
+(``unmatched`` in sync groups) at the inputs they were going to.
 """
 
 from __future__ import annotations
@@ -29,18 +51,39 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import networkx as nx
+
 from .clock import ReplayClock
 from .component import Component, Source
 from .network import Network
-from .ports import InputPort
+from .ports import InputPort, OutputTypeError
 from .sample import Sample
-from .summary import ComponentError, RunSummary
+from .summary import ComponentError, RunSummary, log_skip
 
-__all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters"]
+__all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters", "event_order",
+           "check_source_time"]
 
-_SRC, _DELIVER, _TIMER = 0, 1, 2
+_SRC, _DELIVER, _TIMER, _TRIG = 0, 1, 2, 3
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 ProgressFn = Callable[[int, int | None], None]
+
+
+def event_order(network: Network) -> list[Component]:
+    """Topological order over the non-delayed connections, ties broken by component id:
+    the same graph gives the same order whatever the order of its YAML file
+    (``CycleError`` from :meth:`Network.order` for a cycle without a delay)."""
+    network.order()  # raises CycleError, naming the cycle
+    g = network.digraph(include_delayed=False)
+    return [network.components[n] for n in nx.lexicographical_topological_sort(g, key=str)]
+
+
+def check_source_time(name: str, port: str, t: int) -> None:
+    """Refuse a timestamp outside int64 (MCAP ``log_time``, numpy ``int64``) at its source."""
+    if not _INT64_MIN <= t <= _INT64_MAX:
+        raise ComponentError(name, port, None, "generate", OverflowError(
+            f"yielded t={t} ns on '{port}', outside the int64 range of timestamps "
+            f"[{_INT64_MIN}, {_INT64_MAX}] ns"))
 
 
 class OfflineExecutor:
@@ -59,8 +102,8 @@ class OfflineExecutor:
         self.summary = RunSummary(graph=network.name)
 
     # ------------------------------------------------------------------------------
-    def run(self) -> RunSummary:
-        order = self.net.order()
+    def run(self) -> RunSummary:  # noqa: C901 - the event loop stays in one frame for speed
+        order = event_order(self.net)
         n = len(order)
         rank = {c.name: i for i, c in enumerate(order)}
         heap: list[tuple] = []
@@ -71,26 +114,31 @@ class OfflineExecutor:
         skipped = {c.name: 0 for c in order}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
         live_events = 0  # events other than timers still scheduled
+        # second key: 2 * rank + phase (0: an input receives, 1: a component fires)
+        for c in order:
+            for inp in c.inputs.values():
+                inp.rank = 2 * rank[c.name]
+        delayed_shift = 2 * n
 
         def deliver(inp: InputPort, s: Sample, delayed: bool) -> None:
             nonlocal live_events
-            push(heap, (s.timestamp, inp.rank + n if delayed else inp.rank, next(seq), _DELIVER, inp, s))
+            push(heap, (s.timestamp, inp.rank + delayed_shift if delayed else inp.rank, next(seq), _DELIVER, inp, s))
             live_events += 1
 
         for c in order:
             for out in c.outputs.values():
                 out._deliver = deliver
-            for inp in c.inputs.values():
-                inp.rank = rank[c.name]
 
         # a source's clock offset (its clock vs the mission clock) is applied on the way in
         offsets = {c.name: int(getattr(c, "clock_offset_ns", 0) or 0) for c in order}
         started: list[Component] = []
+        start_failed: set[str] = set()
         gens: dict[str, Iterator[tuple[int, str, Any]]] = {}
         last_src_t: dict[str, int] = {}
         wall0 = time.perf_counter()
         error: ComponentError | None = None
         cur_t: int | None = None
+        events = 0
 
         def pull(src: Source) -> None:
             nonlocal live_events
@@ -104,24 +152,36 @@ class OfflineExecutor:
             if type(t) is not int:
                 t = int(t)
             t += offsets[src.name]
+            if not _INT64_MIN <= t <= _INT64_MAX:
+                check_source_time(src.name, port, t)
             prev = last_src_t.get(src.name)
             if prev is not None and t < prev:
                 raise ComponentError(src.name, port, t, "generate", ValueError(
                     f"source yielded t={t} ns after t={prev} ns: samples must come in time order"))
             last_src_t[src.name] = t
-            push(heap, (t, rank[src.name], next(seq), _SRC, src, (port, data)))
+            push(heap, (t, 2 * rank[src.name] + 1, next(seq), _SRC, src, (port, data)))
             live_events += 1
+
+        def failed(comp: Component, trig: str, t: int, e: Exception) -> None:
+            """A ``process`` call raised: count and log it (``on_error: skip``) or stop the run."""
+            if comp.name not in skip:
+                raise ComponentError(comp.name, trig, t, "process", e) from e
+            skipped[comp.name] += 1
+            if skipped[comp.name] == 1:
+                summary.first_skip[comp.name] = f"t={t} ns: {type(e).__name__}: {e}"
+            log_skip(comp.log, skipped[comp.name], t, e)
 
         try:
             for c in order:
                 if c.live:
                     raise ComponentError(c.name, "", None, "start", RuntimeError(
                         "is a live source: run this graph with the real-time executor (clock: {mode: realtime})"))
+                started.append(c)  # stop() runs even if start() raises: it may release what start() took
                 try:
                     c.start()
                 except Exception as e:
+                    start_failed.add(c.name)
                     raise ComponentError(c.name, "", None, "start", e) from e
-                started.append(c)
             for c in order:
                 if isinstance(c, Source):
                     gens[c.name] = iter(c.generate())
@@ -132,18 +192,19 @@ class OfflineExecutor:
                     for tname, timer in c.__timers__.items():
                         p = timer.period_ns(c)
                         first = -(-t0 // p) * p
-                        push(heap, (first, rank[c.name], next(seq), _TIMER, c, (tname, p)))
-            events = 0
+                        push(heap, (first, 2 * rank[c.name] + 1, next(seq), _TIMER, c, (tname, p)))
             next_check = 256
             last_progress = wall0
 
             def drain() -> None:
                 nonlocal cur_t, live_events, events, next_check, last_progress
                 while heap:
-                    t, _, _, kind, a, b = pop(heap)
+                    ev = pop(heap)
+                    t, k, _, kind, a, b = ev
                     if kind == _TIMER:
-                        if live_events == 0:
-                            return  # only timers left: the mission is over
+                        if live_events == 0 and (cur_t is None or t > cur_t):
+                            push(heap, (t, k, next(seq), kind, a, b))  # kept for a flush that emits
+                            return  # only timers left, past the last sample: the mission is over
                     else:
                         live_events -= 1
                     if cur_t is None or t > cur_t:
@@ -151,46 +212,76 @@ class OfflineExecutor:
                             summary.mission_start_ns = t
                         cur_t = t
                         self.clock.wait_until(t)
-                    events += 1
-                    if events >= next_check:
-                        next_check = events + 256
-                        if self.stop_event.is_set():
-                            summary.interrupted = True
-                            return
-                        now = time.perf_counter()
-                        if self.progress is not None and now - last_progress >= self.progress_interval_s:
-                            last_progress = now
-                            self.progress(cur_t, summary.mission_start_ns)
+                    if kind != _TRIG:
+                        events += 1
+                        if events >= next_check:
+                            next_check = events + 256
+                            if self.stop_event.is_set():
+                                summary.interrupted = True
+                                push(heap, ev)  # not processed: still in flight, counted as such
+                                live_events += kind != _TIMER
+                                return
+                            now = time.perf_counter()
+                            if self.progress is not None and now - last_progress >= self.progress_interval_s:
+                                last_progress = now
+                                self.progress(cur_t, summary.mission_start_ns)
                     if kind == _DELIVER:
                         if not a.push(b):
                             continue
-                        comp = a.owner
-                        trig = a.trigger_name
-                        t = b.timestamp
+                        if heap and heap[0][0] == t and heap[0][1] <= k + 1:
+                            # more arrivals for this component at this time, or triggers already
+                            # waiting: fire after them, in arrival order (the equal-timestamp rule)
+                            push(heap, (t, k + 1, next(seq), _TRIG, a, None))
+                            live_events += 1
+                            continue
+                    elif kind == _TRIG:  # a deferred trigger of input a
+                        if a.group is None and a.policy == "reactive" and not a._fifo:
+                            continue  # its sample was dropped (drop_oldest) or taken already
                     elif kind == _SRC:
                         port, data = b
-                        try:
-                            a.outputs[port].emit(t, data)
-                        except KeyError:
+                        out = a.outputs.get(port)
+                        if out is None:
                             raise ComponentError(a.name, port, t, "generate", KeyError(
                                 f"yielded a sample for unknown output '{port}' "
-                                f"(outputs: {', '.join(a.outputs) or 'none'})")) from None
+                                f"(outputs: {', '.join(a.outputs) or 'none'})"))
+                        try:
+                            out.emit(t, data)
+                        except OutputTypeError as e:
+                            raise ComponentError(a.name, port, t, "generate", e) from e
                         pull(a)
                         continue
-                    else:
-                        comp = a
+                    else:  # a periodic timer of component a
                         trig, p = b
-                        push(heap, (t + p, rank[comp.name], next(seq), _TIMER, comp, b))
+                        push(heap, (t + p, k, next(seq), _TIMER, a, b))
+                        a.trigger = trig
+                        try:
+                            a.process(t)
+                        except Exception as e:
+                            failed(a, trig, t, e)
+                        else:
+                            counts[a.name] += 1
+                        continue
+                    # input a fires its component (a reactive input, or a completed sync group)
+                    comp = a.owner
+                    group = a.group
+                    if group is None:
+                        trig = a.trigger_name
+                    else:
+                        cur = [m._current for m in group.members]
+                        if None in cur:
+                            continue
+                        trig = group.name
+                        t = max(x.timestamp for x in cur)  # type: ignore[union-attr]
                     comp.trigger = trig
                     try:
                         comp.process(t)
                     except Exception as e:
-                        if comp.name in skip:
-                            skipped[comp.name] += 1
-                            comp.log.warning("skipped t=%d ns after %s: %s", t, type(e).__name__, e)
-                            continue
-                        raise ComponentError(comp.name, trig, t, "process", e) from e
-                    counts[comp.name] += 1
+                        failed(comp, trig, t, e)
+                    else:
+                        counts[comp.name] += 1
+                    if group is not None and group.match():  # samples that arrived while it was pending
+                        push(heap, (ev[0], k | 1, next(seq), _TRIG, a, None))
+                        live_events += 1
 
             drain()
             if not summary.interrupted:  # end of the inputs: components may emit what they hold
@@ -203,19 +294,27 @@ class OfflineExecutor:
                     except Exception as e:
                         raise ComponentError(c.name, "flush", cur_t, "flush", e) from e
                     drain()
-            summary.events = events
         except ComponentError as e:
             error = e
         except KeyboardInterrupt:
             summary.interrupted = True
         finally:
+            summary.events = events
             summary.mission_end_ns = cur_t
-            stop_error = stop_components(started)
-            error = error or stop_error
+            in_flight: dict[InputPort, int] = {}
+            for ev in heap:  # samples emitted but never delivered (interrupt, error): lost, counted
+                if ev[3] == _DELIVER:
+                    in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
+            heap.clear()
+            later = stop_components(started)
             summary.wall_s = time.perf_counter() - wall0
             summary.processed = counts
             summary.skipped = {k: v for k, v in skipped.items() if v}
-            collect_counters(summary, order)
+            later += collect_counters(summary, order, in_flight,
+                                      reporting=[c for c in started if c.name not in start_failed])
+            if error is None and later:
+                error, later = later[0], later[1:]
+            summary.errors += [str(e) for e in later]
             if self.progress is not None and cur_t is not None:
                 self.progress(cur_t, summary.mission_start_ns)
         if error is not None:
@@ -227,40 +326,61 @@ class OfflineExecutor:
 
 def collect_counters(summary: RunSummary, order: list[Component],
                      unconsumed: dict[InputPort, int] | None = None,
-                     extra: dict[str, dict[str, Any]] | None = None) -> None:
+                     extra: dict[str, dict[str, Any]] | None = None,
+                     reporting: list[Component] | None = None) -> list[ComponentError]:
     """Fill ``summary`` with every input's counters and every output's count at the end of a
     run (both executors): samples left in sync groups are ``unmatched``, samples left in a
-    reactive FIFO ``unconsumed`` (plus those an executor already removed: ``unconsumed``);
-    ``extra`` adds executor figures to the components' own ``summary()``."""
+    reactive FIFO ``unconsumed``, plus those an executor already removed or never delivered
+    (``unconsumed``: counted as ``unmatched`` for sync-group members, ``unconsumed``
+    otherwise); ``extra`` adds executor figures to the components' own ``summary()``.
+
+    ``summary()`` is asked of the ``reporting`` components only (default: all; the
+    executors pass those whose ``start()`` returned). One that raises is returned as a
+    :class:`ComponentError` (phase ``summary``), never raised: the caller reports it."""
+    lost = unconsumed or {}
+    failures: list[ComponentError] = []
+    asked = None if reporting is None else {c.name for c in reporting}
     for c in order:
         for g in c.sync_groups.values():
             for m in g.members:
-                m.stats.unmatched += m.leftover() + (m._current is not None)
+                m.stats.unmatched += m.leftover() + (m._current is not None) + lost.get(m, 0)
                 m._fifo.clear()
                 m._current = None
         for name, p in c.inputs.items():
-            if p.group is None and p.policy == "reactive":
-                p.stats.unconsumed = len(p._fifo) + (unconsumed or {}).get(p, 0)
+            if p.group is None:
+                if p.policy == "reactive":
+                    p.stats.unconsumed = len(p._fifo) + lost.get(p, 0)
+                else:
+                    p.stats.unconsumed += lost.get(p, 0)
             summary.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
         for name, o in c.outputs.items():
             summary.emitted[f"{c.name}.{name}"] = o.count
-        figures = {**(c.summary() or {}), **(extra or {}).get(c.name, {})}
+        own: dict[str, Any] = {}
+        if asked is None or c.name in asked:
+            try:
+                own = dict(c.summary() or {})
+            except Exception as e:
+                err = ComponentError(c.name, "", None, "summary", e)
+                err.__cause__ = e
+                failures.append(err)
+        figures = {**own, **(extra or {}).get(c.name, {})}
         if figures:
             summary.extra[c.name] = figures
+    return failures
 
 
-def stop_components(started: list[Component]) -> ComponentError | None:
+def stop_components(started: list[Component]) -> list[ComponentError]:
     """Call ``stop()`` of every started component, in order, even when some raise; return
-    the first failure (naming its component) or None. Both executors end a run with it."""
-    first: ComponentError | None = None
+    every failure (each naming its component), in order. Both executors end a run with it."""
+    failures: list[ComponentError] = []
     for c in started:
         try:
             c.stop()
         except Exception as e:
             err = ComponentError(c.name, "", None, "stop", e)
             err.__cause__ = e
-            first = first or err
-    return first
+            failures.append(err)
+    return failures
 
 
 def run_offline(network: Network, speed: float | None = None, **kw: Any) -> RunSummary:

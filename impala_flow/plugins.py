@@ -2,10 +2,18 @@
 
 Plugins come from the ``impala_flow`` entry-point group, built-in and third-party alike.
 ``IMPALA_FLOW_DISABLE_PLUGINS=radar,foo`` (comma-separated names) blocks plugins.
+
+A broken plugin (its module fails to import, or its ``impala_flow_register`` raises) never
+takes the others down: it is left out (what it registered before failing is removed),
+recorded in ``PluginManager.broken`` / ``Registry.broken`` with its one-line error, logged
+once as a warning, and listed by ``impala-flow plugins``; only graphs using its types fail.
+Two plugins claiming one name remain an error of the installation
+(:class:`~impala_flow.registry.NameConflictError`, naming both).
 """
 
 from __future__ import annotations
 
+import logging
 import os
 from typing import Any
 
@@ -13,11 +21,18 @@ import pluggy
 
 from . import hookspecs
 from .hookspecs import PROJECT, hookimpl
-from .registry import PluginInfo, RegistrationError, Registry
+from .registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
 
-__all__ = ["hookimpl", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager"]
+__all__ = ["hookimpl", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager", "warn_broken"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
+
+log = logging.getLogger("impala_flow.plugins")
+
+
+def _one_line(e: BaseException) -> str:
+    msg = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {msg[0]}" if msg else type(e).__name__
 
 
 def blocked_plugins() -> set[str]:
@@ -25,11 +40,13 @@ def blocked_plugins() -> set[str]:
 
 
 class PluginManager(pluggy.PluginManager):
-    """pluggy's manager, plus the distribution version of every entry-point plugin."""
+    """pluggy's manager, plus the distribution version of every entry-point plugin and the
+    plugins that failed to import (``broken``)."""
 
     def __init__(self) -> None:
         super().__init__(PROJECT)
         self.versions: dict[str, str] = {}
+        self.broken: dict[str, BrokenPlugin] = {}
 
 
 def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool = True) -> PluginManager:
@@ -45,30 +62,42 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
         for ep in sorted(entry_points(group=PROJECT), key=lambda e: e.name):
             if pm.is_blocked(ep.name):
                 continue
-            if pm.get_plugin(ep.name) is not None:
-                raise RegistrationError(f"two installed plugins are named '{ep.name}' ({ep.value})")
+            if pm.get_plugin(ep.name) is not None or ep.name in pm.broken:
+                raise NameConflictError(f"two installed plugins are named '{ep.name}' ({ep.value})")
+            version = ep.dist.version if ep.dist else ""
             try:
                 plugin = ep.load()
-            except Exception as e:
-                raise RegistrationError(f"plugin '{ep.name}' ({ep.value}) failed to load: "
-                                        f"{type(e).__name__}: {e}") from e
+            except Exception as e:  # one broken plugin must not disable the others
+                pm.broken[ep.name] = BrokenPlugin(ep.name, ep.value, version, _one_line(e))
+                continue
             pm.register(plugin, name=ep.name)
-            pm.versions[ep.name] = ep.dist.version if ep.dist else ""
+            pm.versions[ep.name] = version
     for name, obj in (extra or {}).items():
         if name in blocked:
             continue
         if pm.get_plugin(name) is not None:
-            raise RegistrationError(f"two plugins are named '{name}': the installed "
+            raise NameConflictError(f"two plugins are named '{name}': the installed "
                                     f"{getattr(pm.get_plugin(name), '__name__', name)} and {obj!r}")
         pm.register(obj, name=name)
     return pm
 
 
+def warn_broken(registry: Registry) -> None:
+    """Log one warning per broken plugin of ``registry``, with the hint to block it."""
+    for b in registry.broken.values():
+        log.warning("%s; it is left out (%s)", b.describe(), b.hint)
+
+
 def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None = None) -> Registry:
-    """Call every plugin's ``impala_flow_register`` with a registry that knows the caller."""
+    """Call every plugin's ``impala_flow_register`` with a registry that knows the caller.
+
+    A plugin whose hook raises (anything but a name conflict with another plugin) is left
+    out and joins ``registry.broken`` with the plugins that failed to import
+    (:func:`warn_broken` tells the user)."""
     pm = pm or make_plugin_manager(extra)
     reg = Registry()
     versions = getattr(pm, "versions", {})
+    reg.broken.update(getattr(pm, "broken", {}))
     for impl in reversed(pm.hook.impala_flow_register.get_hookimpls()):
         name = impl.plugin_name
         module = getattr(impl.plugin, "__name__", type(impl.plugin).__name__)
@@ -77,10 +106,11 @@ def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None 
         reg._current = info
         try:
             impl.function(registry=reg)
-        except RegistrationError:
+        except NameConflictError:
             raise
         except Exception as e:
-            raise RegistrationError(f"plugin '{name}' failed to register: {type(e).__name__}: {e}") from e
+            reg.forget(name)
+            reg.broken[name] = BrokenPlugin(name, module, info.version, _one_line(e))
         finally:
             reg._current = None
     reg.plugin_manager = pm  # type: ignore[attr-defined]

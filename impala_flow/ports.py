@@ -21,15 +21,26 @@ Input policies
     look-up) and ``between(t0, t1)``.
 
 Overflow policies (``maxsize`` per input)
-    ``block``: the producer waits (real-time executor); the offline executor never drops
-    and reports the high-water mark. ``drop_oldest`` / ``drop_newest``: the sample is
-    dropped and counted. Every count is in the run summary and in ``InputPort.stats``.
+    ``block``: the producer waits (real-time executor; the waits and the time spent are
+    counted as ``blocked`` / ``blocked_ns`` and printed as BACKPRESSURE in the summary); the
+    offline executor never drops and reports the high-water mark. ``drop_oldest`` /
+    ``drop_newest``: the sample is dropped and counted. Every count is in the run summary
+    and in ``InputPort.stats``.
+
+Output types
+    ``OutputPort.emit`` checks the emitted data against the port's declared type, by class
+    and cached per port (one set look-up per emit once a class is known): ``Output(float)``
+    accepts Python and numpy numbers (not bools), ``Output(int)`` integers, ``Output(bool)``
+    numpy bools too, any other type its instances
+    (subclasses included); ``Output(object)`` accepts anything. A mismatch raises
+    :class:`OutputTypeError` naming the component, the port and the sample time.
 """
 
 from __future__ import annotations
 
 import bisect
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,7 +55,7 @@ from .sample import Sample
 if TYPE_CHECKING:
     from .component import Component, Input, Output
 
-__all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput"]
+__all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput", "OutputTypeError"]
 
 POLICIES = ("reactive", "sampling")
 OVERFLOWS = ("block", "drop_oldest", "drop_newest")
@@ -58,13 +69,28 @@ class OutOfHistory(LookupError):
     """``at(t)`` outside the span of an input's history buffer."""
 
 
+class OutputTypeError(TypeError):
+    """Data emitted on an output does not fit the output's declared type."""
+
+
+#: declared type -> the extra classes it accepts (numbers: numpy scalars, int for float)
+_NUMERIC_ALIASES: dict[type, tuple[type, ...]] = {
+    float: (int, np.floating, np.integer),
+    int: (np.integer,),
+    complex: (int, float, np.number),
+    bool: (np.bool_,),
+}
+
+
 @dataclass
 class PortStats:
     received: int = 0
     dropped: int = 0
     unmatched: int = 0
-    unconsumed: int = 0  # left in the FIFO at the end of the run, never taken
+    unconsumed: int = 0  # left in the FIFO at the end of the run (or in flight), never taken
     high_water: int = 0
+    blocked: int = 0  # times a producer waited for room (block policy, real time)
+    blocked_ns: int = 0  # total time producers waited
 
 
 def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
@@ -112,7 +138,7 @@ class InputPort:
         self.trigger_name = name if decl.sync is None else decl.sync
         self.connected = False
         self.sources: list[OutputPort] = []  # the outputs feeding this input
-        self.rank = 0  # graph order of the owner, set by the executor
+        self.rank = 0  # event key of the owner (2 x its graph rank), set by the offline executor
 
     # --- producer side ------------------------------------------------------------
     def push(self, s: Sample) -> bool:
@@ -138,8 +164,12 @@ class InputPort:
                 st.dropped += 1
             elif self._cond is not None:  # block: real-time producer waits for room
                 with self._cond:
-                    while len(fifo) >= self.maxsize:
-                        self._cond.wait(0.1)
+                    if len(fifo) >= self.maxsize:
+                        t0 = time.perf_counter_ns()
+                        while len(fifo) >= self.maxsize:
+                            self._cond.wait(0.1)
+                        st.blocked += 1
+                        st.blocked_ns += time.perf_counter_ns() - t0
         fifo.append(s)
         n = len(fifo)
         if n > st.high_water:
@@ -302,7 +332,7 @@ class SyncGroup:
 class OutputPort:
     """One output of one component instance; ``emit`` stamps, freezes and fans out."""
 
-    __slots__ = ("name", "owner", "decl", "origin", "count", "_seq", "_targets", "_deliver")
+    __slots__ = ("name", "owner", "decl", "origin", "count", "_seq", "_targets", "_deliver", "_typed", "_ok")
 
     def __init__(self, owner: Component, name: str, decl: Output) -> None:
         self.name = name
@@ -310,10 +340,30 @@ class OutputPort:
         self.decl = decl
         self.origin = f"{owner.name}.{name}"
         self.count = 0
+        t = decl.type
+        self._typed = isinstance(t, type) and t is not object  # typing constructs: not checked
+        self._ok: set[type] = set()  # classes already accepted on this port
         self._seq = 0
         self._targets: list[tuple[InputPort, bool]] = []  # (input, delayed)
         # set by the executor: deliver(input, sample, delayed)
         self._deliver: Callable[[InputPort, Sample, bool], None] | None = None
+
+    def _check_type(self, t_ns: int, data: Any) -> None:
+        """Accept ``type(data)`` for good (cached) or raise :class:`OutputTypeError`."""
+        want = self.decl.type
+        cls = type(data)
+        also = _NUMERIC_ALIASES.get(want, ())
+        if isinstance(data, want) or (
+            issubclass(cls, also) and (want is bool or not issubclass(cls, (bool, np.bool_)))
+        ):
+            self._ok.add(cls)
+            return
+        shown = repr(data)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise OutputTypeError(
+            f"output '{self.name}' of component '{self.owner.name}' is declared "
+            f"{getattr(want, '__name__', want)} but emitted {cls.__name__} {shown} at t={t_ns} ns"
+        )
 
     def connected_inputs(self) -> list[InputPort]:
         """The inputs this output feeds (in connection order)."""
@@ -327,6 +377,8 @@ class OutputPort:
                     f"{self.origin}: timestamps are int nanoseconds, got {type(t_ns).__name__} {t_ns!r}"
                 )
             t_ns = int(t_ns)
+        if self._typed and type(data) not in self._ok:
+            self._check_type(t_ns, data)
         s = Sample(t_ns, freeze(data), self._seq, self.origin)
         self._seq += 1
         self.count += 1

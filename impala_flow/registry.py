@@ -8,11 +8,35 @@ from typing import Any
 from .component import Component
 from .msgs import BUILTIN_TYPES, is_message, schema_name
 
-__all__ = ["Registry", "RegistrationError", "PluginInfo"]
+__all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin"]
 
 
 class RegistrationError(ValueError):
     """Two plugins registered the same name, or a registration is malformed."""
+
+
+class NameConflictError(RegistrationError):
+    """Two plugins claim the same name: an error of the installation, naming both."""
+
+
+@dataclass
+class BrokenPlugin:
+    """A plugin that failed to import or to register: left out, every other plugin loads.
+
+    ``target`` is its entry point (``module:attr``), ``error`` one line
+    (``ModuleNotFoundError: No module named 'x'``)."""
+
+    name: str
+    target: str = ""
+    version: str = ""
+    error: str = ""
+
+    @property
+    def hint(self) -> str:
+        return f"IMPALA_FLOW_DISABLE_PLUGINS={self.name} hides it"
+
+    def describe(self) -> str:
+        return f"plugin '{self.name}' ({self.target}) failed to load: {self.error}"
 
 
 @dataclass
@@ -37,6 +61,7 @@ class Registry:
         self.codecs: dict[str, Any] = {}
         self.owner: dict[str, str] = {}  # registered name -> plugin name
         self.plugins: dict[str, PluginInfo] = {}
+        self.broken: dict[str, BrokenPlugin] = {}  # plugins left out, with their error
         self._current: PluginInfo | None = None
         for t in BUILTIN_TYPES:
             self.types[schema_name(t)] = t
@@ -45,7 +70,7 @@ class Registry:
     def _claim(self, key: str) -> None:
         plugin = self._current.name if self._current else "impala_flow"
         if key in self.owner:
-            raise RegistrationError(
+            raise NameConflictError(
                 f"'{key}' is registered by two plugins: '{self.owner[key]}' and '{plugin}'"
             )
         self.owner[key] = plugin
@@ -82,3 +107,21 @@ class Registry:
 
     def component(self, type_name: str) -> type[Component]:
         return self.components[type_name]
+
+    def forget(self, plugin: str) -> None:
+        """Remove everything ``plugin`` registered (its registration failed half-way)."""
+        for key in [k for k, owner in self.owner.items() if owner == plugin]:
+            del self.owner[key]
+            self.components.pop(key, None)
+            self.types.pop(key, None)
+            if key.startswith("codec:"):
+                self.codecs.pop(key[len("codec:"):], None)
+        self.plugins.pop(plugin, None)
+
+    def why_unknown(self, type_name: str) -> str | None:
+        """Why ``type_name`` is not registered when its plugin is broken, else None:
+        ``type 'x.Foo' comes from plugin 'x', which failed to load: ...``."""
+        b = self.broken.get(type_name.split(".", 1)[0])
+        if b is None:
+            return None
+        return f"type '{type_name}' comes from plugin '{b.name}', which failed to load: {b.error} ({b.hint})"

@@ -70,14 +70,24 @@ raises. Then, in this order:
    (queued at that point or delivered later) are counted as ``unconsumed`` (``unmatched``
    for sync groups), like the offline executor's leftovers: nothing is lost silently.
    ``dropped`` only ever counts the overflow policies' drops;
-4. the workers are joined, then every started component's ``stop()`` runs exactly once,
-   in graph order, on the calling thread;
+4. the workers are joined, then ``stop()`` runs exactly once for every component whose
+   ``start()`` was called (also one whose ``start()`` raised), in graph order, on the
+   calling thread; ``summary()`` is asked only of those whose ``start()`` returned;
 5. the summary is completed (``interrupted`` flag, drops, per-component counts), and a
    :class:`~impala_flow.summary.ComponentError` is raised if a component failed, with
-   the summary attached as ``error.summary``.
+   the summary attached as ``error.summary``. It is the first failure; later ones (another
+   component, a ``stop()`` or ``summary()`` that raised) are lines of ``summary.errors``.
+
+Equal timestamps: samples are delivered as they come; the executor cannot wait for a
+sample that may never arrive, so the offline equal-timestamp rule (see
+:mod:`impala_flow.executor`) is not guaranteed live: read equal-time streams through a sync
+group or ``at(t, clamp=True)``. A ``block`` input that makes its producer wait counts the
+waits and their duration (``blocked``, ``blocked_ns``: BACKPRESSURE in the summary).
+Timestamps outside int64 are refused at the source, as offline.
 
 A component listed with ``on_error: skip`` in ``network.on_error`` has its failing calls
-logged and counted (``skipped``) instead; a failing source then just ends.
+counted (``skipped``) instead, the first few logged (:func:`~impala_flow.summary.log_skip`);
+a failing source then just ends.
 """
 
 from __future__ import annotations
@@ -93,11 +103,11 @@ from typing import Any, Protocol
 
 from .clock import MissionClock
 from .component import Component, Source
-from .executor import collect_counters, stop_components
+from .executor import check_source_time, collect_counters, stop_components
 from .network import Network
 from .ports import InputPort, SyncGroup
 from .sample import Sample
-from .summary import ComponentError, RunSummary
+from .summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["RealTimeExecutor", "run_realtime", "BATCH"]
 
@@ -182,6 +192,7 @@ class RealTimeExecutor:
         self._stopping = threading.Event()  # sources stop
         self._timers_stop = threading.Event()
         self._error: ComponentError | None = None
+        self._later: list[ComponentError] = []  # failures after the first, reported on their own lines
         self._error_lock = threading.Lock()
         self._states: list[_State] = []
         self._timer_ticks = 0
@@ -192,6 +203,8 @@ class RealTimeExecutor:
         with self._error_lock:
             if self._error is None:
                 self._error = err
+            else:
+                self._later.append(err)
         self._stopping.set()
         self._wake.set()
 
@@ -251,7 +264,9 @@ class RealTimeExecutor:
             except Exception as e:
                 if st.skip:
                     st.skipped += 1
-                    comp.log.warning("skipped t=%d ns after %s: %s", t, type(e).__name__, e)
+                    if st.skipped == 1:
+                        self.summary.first_skip[comp.name] = f"t={t} ns: {type(e).__name__}: {e}"
+                    log_skip(comp.log, st.skipped, t, e)
                 else:
                     err = ComponentError(comp.name, trig, t, "process", e)
                     err.__cause__ = e
@@ -297,6 +312,8 @@ class RealTimeExecutor:
                 item = None
                 if type(t) is not int:
                     t = int(t)
+                if not -(1 << 63) <= t + offset < 1 << 63:
+                    check_source_time(src.name, port, t + offset)
                 if last_t is not None and t < last_t:
                     raise ValueError(f"source yielded t={t} ns after t={last_t} ns: samples must come in time order")
                 last_t = t
@@ -312,6 +329,8 @@ class RealTimeExecutor:
                                    f"(outputs: {', '.join(outs) or 'none'})")
                 out.emit(t, data)
                 run.emitted += 1
+        except ComponentError as e:
+            self._fail(e)
         except Exception as e:
             if self.net.on_error.get(src.name) == "skip":
                 src.log.warning("source ended after %s: %s", type(e).__name__, e)
@@ -409,17 +428,19 @@ class RealTimeExecutor:
             net.metadata["clock_offsets_ns"] = dict(offsets)
 
         started: list[Component] = []
+        start_failed: set[str] = set()
         workers: list[threading.Thread] = []
         timer_thread: threading.Thread | None = None
         error: ComponentError | None = None
         wall0 = time.perf_counter()
         try:
             for c in order:
+                started.append(c)  # stop() runs even if start() raises: it may release what start() took
                 try:
                     c.start()
                 except Exception as e:
+                    start_failed.add(c.name)
                     raise ComponentError(c.name, "", None, "start", e) from e
-                started.append(c)
             first_ns: int | None = None
             for r in sources:  # non-live sources: pull their first sample to align them
                 if r.src.live:
@@ -469,8 +490,7 @@ class RealTimeExecutor:
             self._shutdown(sources, workers, timer_thread, [] if summary.interrupted else order)
             error = self._error
             summary.mission_end_ns = now() if summary.mission_start_ns is not None else None
-            stop_error = stop_components(started)
-            error = error or stop_error
+            later = self._later + stop_components(started)
             summary.wall_s = time.perf_counter() - wall0
             summary.events = (sum(r.emitted for r in sources) + sum(st.delivered for st in self._states)
                               + self._timer_ticks)
@@ -483,7 +503,11 @@ class RealTimeExecutor:
                 if st.missed_ticks:
                     extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
             removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
-            collect_counters(summary, order, removed, extra)
+            later += collect_counters(summary, order, removed, extra,
+                                      reporting=[c for c in started if c.name not in start_failed])
+            if error is None and later:
+                error, later = later[0], later[1:]
+            summary.errors += [str(e) for e in later]
             for c in order:  # leave the ports as the offline executor expects them
                 for inp in c.inputs.values():
                     inp._cond = None

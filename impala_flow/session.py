@@ -19,7 +19,7 @@ from .clock import ReplayClock, parse_speed
 from .executor import OfflineExecutor
 from .graph import GraphSpec, load_graph, load_graph_text
 from .network import Network
-from .plugins import load_registry, make_plugin_manager
+from .plugins import load_registry, make_plugin_manager, warn_broken
 from .registry import Registry
 from .summary import RunSummary
 
@@ -44,11 +44,16 @@ def stop_on_signals(stop: threading.Event) -> Iterator[None]:
 
 
 class Session:
-    """A run's plugin manager and registry (never built at import time)."""
+    """A run's plugin manager and registry (never built at import time).
+
+    A plugin that fails to import or to register is left out with a warning (see
+    :mod:`impala_flow.plugins`); it is listed in ``session.registry.broken``.
+    """
 
     def __init__(self, extra_plugins: dict[str, Any] | None = None, entrypoints: bool = True) -> None:
         self.pm = make_plugin_manager(extra_plugins, entrypoints=entrypoints)
         self.registry: Registry = load_registry(self.pm)
+        warn_broken(self.registry)
         self.stop_event = threading.Event()
 
     def load(self, path: str | Path, overrides: list[str] | tuple[str, ...] = (),

@@ -1,11 +1,29 @@
-"""RunSummary: what a run did, what it dropped, what failed. Nothing is lost silently."""
+"""RunSummary: what a run did, what it dropped, what failed. Nothing is lost silently.
+
+Errors: ``error`` is the first failure of the run (the one raised to the caller);
+``errors`` lists the later ones (a ``stop()`` or ``summary()`` that raised too), each a
+line naming its component, so a secondary failure never hides the first.
+"""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["RunSummary", "ComponentError"]
+__all__ = ["RunSummary", "ComponentError", "log_skip", "SKIP_LOG_LIMIT"]
+
+#: ``on_error: skip``: the first skips of a component logged one by one, the rest counted
+SKIP_LOG_LIMIT = 3
+
+
+def log_skip(log: logging.Logger, n: int, t_ns: int | None, exc: BaseException) -> None:
+    """Log the ``n``-th skip (1-based) of a component: the first :data:`SKIP_LOG_LIMIT`
+    with their error, then one line saying the rest are only counted (in the summary)."""
+    if n <= SKIP_LOG_LIMIT:
+        log.warning("skipped t=%s ns after %s: %s", t_ns, type(exc).__name__, exc)
+        if n == SKIP_LOG_LIMIT:
+            log.warning("further skips are counted, not logged: the total is in the run summary")
 
 
 class ComponentError(RuntimeError):
@@ -33,6 +51,8 @@ class RunSummary:
     error: str | None = None
     processed: dict[str, int] = field(default_factory=dict)
     skipped: dict[str, int] = field(default_factory=dict)
+    first_skip: dict[str, str] = field(default_factory=dict)  # component -> "t=... ns: Error: msg"
+    errors: list[str] = field(default_factory=list)  # failures after the first (stop(), summary())
     emitted: dict[str, int] = field(default_factory=dict)  # "comp.port" -> count
     inputs: dict[str, dict[str, int]] = field(default_factory=dict)  # "comp.port" -> stats
     extra: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -56,6 +76,12 @@ class RunSummary:
                 out[k] = lost
         return out
 
+    def backpressure(self) -> dict[str, dict[str, float]]:
+        """Inputs whose producers waited for room (``block`` policy, real time):
+        {"comp.port": {"blocked": times, "blocked_s": seconds in total}}."""
+        return {k: {"blocked": st["blocked"], "blocked_s": st.get("blocked_ns", 0) / 1e9}
+                for k, st in self.inputs.items() if st.get("blocked")}
+
     @property
     def total_lost(self) -> int:
         return sum(sum(v.values()) for v in self.drops().values())
@@ -67,6 +93,7 @@ class RunSummary:
             + (" - INTERRUPTED" if self.interrupted else "")
             + (f" - FAILED: {self.error}" if self.error else "")
         ]
+        lines += [f"  ERROR {e}" for e in self.errors]
         for name, n in self.processed.items():
             extra = self.extra.get(name) or {}
             emitted = {k.split(".", 1)[1]: v for k, v in self.emitted.items() if k.split(".", 1)[0] == name}
@@ -75,7 +102,8 @@ class RunSummary:
             else:
                 bits = [f"{n} process calls"]
             if self.skipped.get(name):
-                bits.append(f"{self.skipped[name]} skipped after errors")
+                first = self.first_skip.get(name)
+                bits.append(f"{self.skipped[name]} skipped after errors" + (f" (first at {first})" if first else ""))
             bits += [f"{k}={v}" for k, v in extra.items()]
             lines.append(f"  {name}: " + ", ".join(bits))
         drops = self.drops()
@@ -84,4 +112,7 @@ class RunSummary:
                 lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
         else:
             lines.append("  no sample dropped")
+        for k, v in self.backpressure().items():
+            lines.append(f"  BACKPRESSURE at {k}: producers blocked {v['blocked']} times, "
+                         f"{v['blocked_s']:.3f} s in total (block policy: the input was full)")
         return "\n".join(lines)

@@ -8,8 +8,7 @@ from typing import Any
 
 from ..component import Component, Input, Output, Param, Source
 from ..msgs import is_message, schema_name
-from ..registry import PluginInfo, Registry
-from . import EXIT_FAILED, CommandError
+from ..registry import Registry
 from ._common import open_session
 
 __all__ = ["add_parser", "run", "describe_plugins", "describe_component"]
@@ -19,6 +18,9 @@ examples:
   impala-flow plugins                 every plugin, component, port and parameter
   impala-flow plugins --json | jq '.plugins[].components[].type'
   IMPALA_FLOW_DISABLE_PLUGINS=radar impala-flow plugins   without the 'radar' plugin
+
+A plugin that fails to import or to register is listed as BROKEN with its error; every other
+plugin still loads, and only graphs using the broken plugin's types fail.
 
 A component type is written '<plugin>.<Class>' in a graph (components: {p: {type: radar.FuzzyPairer}}).
 Input policies: reactive (each sample triggers process), sampling (last value, never triggers),
@@ -49,45 +51,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# --- loading, with the failing plugin named -------------------------------------------------
+# --- loading: a broken plugin is listed, never fatal ------------------------------------------
 def _load_registry() -> Registry:
-    try:
-        return open_session().registry
-    except CommandError as e:
-        culprit = _find_failing_plugin()
-        if culprit is None:
-            raise
-        name, exc = culprit
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise CommandError(f"plugin '{name}' failed to load: {type(exc).__name__}"
-                           + (f": {msg}" if msg else ""), EXIT_FAILED) from e
-
-
-def _find_failing_plugin() -> tuple[str, BaseException] | None:
-    """Load each installed plugin alone to find the one that breaks the registry."""
-    from importlib.metadata import entry_points
-
-    from ..hookspecs import PROJECT
-    from ..plugins import blocked_plugins
-
-    blocked = blocked_plugins()
-    for ep in entry_points(group=PROJECT):
-        if ep.name in blocked:
-            continue
-        try:
-            plugin = ep.load()
-        except Exception as exc:
-            return ep.name, exc
-        register = getattr(plugin, "impala_flow_register", None)
-        if register is None:
-            continue
-        reg = Registry()
-        reg._current = PluginInfo(name=ep.name)
-        try:
-            register(registry=reg)
-        except Exception as exc:
-            return ep.name, exc
-    return None
+    """The session's registry; plugins that failed to import or register are in ``.broken``."""
+    return open_session().registry
 
 
 # --- description as plain data --------------------------------------------------------------
@@ -164,7 +131,8 @@ def describe_component(type_name: str, cls: type[Component]) -> dict[str, Any]:
 
 
 def describe_plugins(registry: Registry) -> dict[str, Any]:
-    """Every plugin of ``registry`` with its version, components and message types."""
+    """Every plugin of ``registry`` with its version, components and message types, and the
+    broken ones (``broken``: name, entry point, version, error, hint)."""
     plugins = []
     for info in sorted(registry.plugins.values(), key=lambda p: p.name):
         plugins.append({
@@ -172,7 +140,9 @@ def describe_plugins(registry: Registry) -> dict[str, Any]:
             "components": [describe_component(t, registry.components[t]) for t in info.components],
             "types": sorted(info.types),
         })
-    return {"plugins": plugins}
+    broken = [{"name": b.name, "entry_point": b.target, "version": b.version, "error": b.error, "hint": b.hint}
+              for b in sorted(registry.broken.values(), key=lambda b: b.name)]
+    return {"plugins": plugins, "broken": broken}
 
 
 # --- text -----------------------------------------------------------------------------------
@@ -238,9 +208,15 @@ def format_component(c: dict[str, Any], indent: str = "  ") -> list[str]:
 def format_plugins(data: dict[str, Any]) -> str:
     """The text listing: one block per plugin, one per component, aligned columns."""
     plugins = data["plugins"]
-    if not plugins:
+    broken = data.get("broken", [])
+    if not plugins and not broken:
         return "no plugin installed (entry point group 'impala_flow')"
     out: list[str] = []
+    for b in broken:
+        out.append(f"{b['name']} {b['version'] or '(no version)'}  [{b['entry_point']}]  BROKEN: {b['error']}")
+        out.append(f"  left out: every other plugin works; graphs using '{b['name']}.*' types fail "
+                   f"({b['hint']})")
+        out.append("")
     for p in plugins:
         n = len(p["components"])
         out.append(f"{p['name']} {p['version'] or '(no version)'}  [{p['module']}]  "
@@ -253,5 +229,6 @@ def format_plugins(data: dict[str, Any]) -> str:
         if not p["components"]:
             out.append("")
     total = sum(len(p["components"]) for p in plugins)
-    out.append(f"{len(plugins)} plugin{'s' if len(plugins) != 1 else ''}, {total} component types")
+    out.append(f"{len(plugins)} plugin{'s' if len(plugins) != 1 else ''}, {total} component types"
+               + (f", {len(broken)} broken plugin{'s' if len(broken) != 1 else ''} left out" if broken else ""))
     return "\n".join(out)

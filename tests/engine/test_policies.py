@@ -151,11 +151,13 @@ def test_overflow_policies_drop_and_count(overflow, expected_first):
     summary = run_components(ScriptedSource("src", script), S("slow"), sink,
                              connections=["src.out -> slow.x", "slow.out -> sink.x"])
     assert summary.inputs["slow.x"]["dropped"] == 7
-    # the 50 ms sample arrives after the 50 ms tick (the tick was scheduled first): never taken
-    assert summary.inputs["slow.x"]["unconsumed"] == 1
-    assert summary.total_lost == 8
-    assert sink.values()[0] == expected_first
-    assert "LOST at slow.x: 7 dropped, 1 unconsumed" in summary.format()
+    # ticks at 10, 20, 30 ms take the 3 kept samples; the 50 ms sample arrives before the
+    # 50 ms tick fires (equal-timestamp rule), which takes it
+    assert summary.inputs["slow.x"]["unconsumed"] == 0
+    assert summary.total_lost == 7
+    assert sink.values()[0] == expected_first and sink.values()[-1] == 99.0
+    assert sink.times() == [10 * MS, 20 * MS, 30 * MS, 50 * MS]
+    assert "LOST at slow.x: 7 dropped" in summary.format()
 
 
 def test_periodic_trigger_fires_on_mission_time_multiples():
