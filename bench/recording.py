@@ -5,6 +5,8 @@
 1. write and read throughput (MB/s of payload) of 1 MiB float32 arrays and of small
    Pose2D messages, each as a ratio to the bare mcap library writing/reading the same
    payload bytes with the same chunk size and compression (target >= 0.8);
+   Then the same for a file another tool wrote without chunks or summary (the forward-scan
+   path of the reader: raw payloads, against the library's streaming reader);
 2. seeking to the middle of a ``--size-gb`` recording (time to the first message, and
    its ratio to a full scan);
 3. peak memory (RSS) of a process replaying that file through io.Replayer (target < 200 MB).
@@ -25,8 +27,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from mcap.reader import make_reader
-from mcap.writer import CompressionType, Writer
+from mcap.reader import NonSeekingReader, make_reader
+from mcap.writer import CompressionType, IndexType, Writer
 
 from impala_flow import msgs
 from impala_flow.io import COMPRESSIONS, CodecRegistry, MissionReader, MissionWriter
@@ -109,6 +111,38 @@ def throughput(name: str, values: list, t: type, reg: CodecRegistry, tmp: Path,
     return out
 
 
+def foreign(tmp: Path, n: int, reps: int) -> dict[str, float]:
+    """An unchunked, unindexed file without summary (as some tools write): our forward scan
+    (raw payloads) against the library's streaming reader."""
+    path = tmp / "foreign.mcap"
+    payload = bytes(64)
+    with open(path, "wb") as f:
+        w = Writer(f, use_chunking=False, index_types=IndexType.NONE, use_statistics=False,
+                   use_summary_offsets=False, repeat_channels=False, repeat_schemas=False)
+        w.start()
+        cid = w.register_channel("x", "raw", w.register_schema("x", "raw", b""))
+        for i in range(n):
+            w.add_message(cid, i * 1000, payload, i * 1000, i)
+        w.finish()
+    mb = n * len(payload) / 1e6
+
+    def ours() -> None:
+        with MissionReader(path) as r:
+            for _ in r.messages(raw=True):
+                pass
+
+    def bare() -> None:
+        with open(path, "rb") as f:
+            for _ in NonSeekingReader(f).iter_messages(log_time_order=False):
+                pass
+
+    t_ours, t_bare = best_of(reps, ours), best_of(reps, bare)
+    print(f"foreign: {n} msgs unchunked, no summary: read {mb / t_ours:8.1f} MB/s (bare mcap streaming "
+          f"{mb / t_bare:8.1f})  ratio {t_bare / t_ours:.2f}")
+    return {"foreign_read_MBps": mb / t_ours, "foreign_read_bare_MBps": mb / t_bare,
+            "foreign_read_ratio_vs_mcap": t_bare / t_ours}
+
+
 def make_big(path: Path, size_gb: float, reg: CodecRegistry) -> tuple[int, int]:
     """A mission of ~size_gb: a 1 MiB float32 image at 10 Hz, poses at 100 Hz."""
     rng = np.random.default_rng(0)
@@ -168,6 +202,7 @@ def main() -> None:
         result |= throughput("pose", poses, msgs.Pose2D, reg, tmp, args.compression, MiB,
                              args.reps)
         del poses
+        result |= foreign(tmp, args.poses, args.reps)
 
         big = tmp / "big.mcap"
         t0 = time.perf_counter()

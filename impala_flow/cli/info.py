@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from dataclasses import asdict
 
@@ -15,11 +16,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "info", help="describe a recording (MCAP)",
         description="Channels with schemas, counts and rates; start, end, duration, "
         "compression; whether the file is truncated (and how many messages were recovered) "
-        "and any corrupt chunk; how the recording was made (its metadata).",
+        "and any corrupt chunk or damaged record; attachments; how the recording was made (its "
+        "metadata). --verify reads every chunk and checks every CRC and every index against the "
+        "data; the counts are then the messages actually readable. Exit 1 on a damaged file (with "
+        "--verify: on any problem, truncation included).",
         epilog="example: impala-flow info missions/beynes.mcap --verify",
     )
     p.add_argument("file", metavar="FILE", help="MCAP recording")
-    p.add_argument("--verify", action="store_true", help="read and CRC-check every chunk")
+    p.add_argument("--verify", action="store_true",
+                   help="read every chunk; check every CRC, chunk index, message index and the statistics")
     p.add_argument("--metadata", action="store_true", help="print the metadata records in full")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
@@ -44,16 +49,22 @@ def _t(t_ns: int | None) -> str:
 
 
 def format_info(info: RecordingInfo, metadata: bool = False) -> str:
-    state = "complete"
+    state = "complete, verified" if info.verified else "complete"
     if info.truncated:
         state = f"TRUNCATED - {info.recovered_count} messages recovered"
+        if info.mirror_count:
+            state += f" (+ {info.mirror_count} Foxglove mirror copies)"
+    elif info.problems or info.corrupt_chunks:
+        state = f"DAMAGED - {len(info.problems)} problem{'s' if len(info.problems) != 1 else ''}"
+    counts = "readable messages" if info.verified else "messages"
     lines = [
         f"file:         {info.path} ({info.size_bytes / 1e6:.1f} MB, {state})",
         f"start:        {_t(info.start_ns)}",
         f"end:          {_t(info.end_ns)}",
         f"duration:     {info.duration_s:.3f} s",
-        f"messages:     {info.message_count} in {info.chunk_count} chunks, "
-        f"compression {info.compression}",
+        f"{counts + ':':<14}{info.message_count} in {info.chunk_count} chunks, "
+        f"compression {info.compression}"
+        + (f" ({info.mirror_count} of them Foxglove mirror copies)" if info.mirror_count else ""),
         "channels:",
     ]
     width = max((len(c.topic) for c in info.channels), default=5)
@@ -65,6 +76,8 @@ def format_info(info: RecordingInfo, metadata: bool = False) -> str:
     if info.corrupt_chunks:
         lines.append(f"corrupt chunks: {info.corrupt_chunks} (skipped)")
     lines += [f"problem: {p}" for p in info.problems]
+    for name, media, n in info.attachments:
+        lines.append(f"attachment {name}: {media or 'no media type'}, {n} bytes")
     for name, rec in info.metadata.items():
         if metadata or name.startswith(SOURCE_METADATA):  # what a source read: short, always in full
             lines.append(f"metadata {name}:")
@@ -78,8 +91,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         with MissionReader(args.file, codecs()) as r:
             if args.verify:
-                r.verify()
-            info = r.info()
+                problems = r.verify()
+                info = dataclasses.replace(r.info(), problems=tuple(problems))
+            else:
+                info = r.info()
     except RecordingError as e:
         raise CommandError(str(e), EXIT_FAILED) from None
     if args.json:
@@ -88,4 +103,6 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(d, default=str))
     else:
         print(format_info(info, args.metadata))
-    return EXIT_FAILED if info.corrupt_chunks else 0
+    if args.verify:  # anything short of a whole, sound file
+        return 0 if info.complete else EXIT_FAILED
+    return EXIT_FAILED if info.problems or info.corrupt_chunks else 0  # a cut file is described

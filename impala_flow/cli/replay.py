@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+from typing import Any
 
 from ..graph import GraphError, resolve_graph
+from ..io import MissionReader, RecordingError
+from ..summary import RunSummary
 from ..yamlloc import YamlError
-from . import EXIT_USAGE, CommandError
+from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from ._common import add_graph_args, open_session, parse_vars, run_network
 
 REPLAYER = "io.Replayer"
@@ -24,6 +29,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", default=None, metavar="X|max", help="replay speed (default: the "
                    "graph's clock.speed); pacing never changes the results")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--summary-json", metavar="OUT", help="also write the run summary as JSON (with 'lost': "
+                   "the messages of damaged chunks, per replayer output)")
     p.set_defaults(func=run)
 
 
@@ -36,7 +43,39 @@ def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
     return [c.id for c in spec.components.values() if c.type == REPLAYER]
 
 
+def replay_losses(summary: RunSummary, ids: list[str]) -> dict[str, dict[str, Any]]:
+    """"replayer.port" -> {"unreadable": n} for the messages the replayers could not read
+    (damaged chunks; n None when the file cannot say how many), from their summary()."""
+    out: dict[str, dict[str, Any]] = {}
+    for cid in ids:
+        for port, n in ((summary.extra.get(cid) or {}).get("lost") or {}).items():
+            out[f"{cid}.{port}"] = {"unreadable": n}
+    return out
+
+
+def lost_lines(summary: RunSummary, ids: list[str]) -> list[str]:
+    """``LOST at replayer.port`` lines, as the run summary prints them for inputs, with the
+    time ranges missing."""
+    ranges: dict[str, list[str]] = {}
+    for cid in ids:
+        for port, a, b in (summary.extra.get(cid) or {}).get("lost_ranges_s", []):
+            ranges.setdefault(f"{cid}.{port}", []).append(f"{a:.3f}..{b:.3f} s")
+    return [f"  LOST at {k}: {'an unknown number of' if v['unreadable'] is None else v['unreadable']} "
+            f"unreadable (damaged chunks; missing t={', '.join(ranges.get(k, []))})"
+            for k, v in replay_losses(summary, ids).items()]
+
+
+def check_recording(path: str) -> None:
+    """One line, exit 1, when FILE is not a readable recording (before the graph is built)."""
+    try:
+        with MissionReader(path):
+            pass
+    except RecordingError as e:
+        raise CommandError(str(e), EXIT_FAILED) from None
+
+
 def run(args: argparse.Namespace) -> int:
+    check_recording(args.file)
     variables = parse_vars(args.variables)
     ids = replayer_ids(args.graph, variables)
     if not ids:
@@ -48,5 +87,23 @@ def run(args: argparse.Namespace) -> int:
         spec = session.load(args.graph, overrides, variables)
     except (GraphError, YamlError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
+    if args.summary_json:
+        try:
+            open(args.summary_json, "a", encoding="utf-8").close()
+        except OSError as e:
+            raise CommandError(f"--summary-json {args.summary_json}: cannot write ({e.strerror})", EXIT_USAGE) \
+                from None
+
+    def report(summary: RunSummary) -> None:
+        text = summary.format()
+        extra = [line for line in lost_lines(summary, ids) if line.split(":")[0] not in text]
+        if extra:
+            print("\n".join(extra), file=sys.stderr)
+        if args.summary_json:
+            lost = replay_losses(summary, ids)
+            total = summary.total_lost + sum(v["unreadable"] or 0 for v in lost.values())
+            with open(args.summary_json, "w", encoding="utf-8") as f:
+                json.dump({**vars(summary), "lost": lost, "lost_total": total}, f, indent=2, default=str)
+
     return run_network(session, spec, speed=args.speed,
-                       progress=False if args.no_progress else None)
+                       progress=False if args.no_progress else None, on_summary=report)

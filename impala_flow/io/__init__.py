@@ -3,7 +3,8 @@
 - :class:`CodecRegistry`: codecs by Python type and by (schema name, version); one generic
   exact codec (:class:`MessageCodec`) serves every ``@message`` dataclass.
 - :class:`MissionWriter`: chunked, indexed MCAP with metadata and Foxglove mirrors.
-- :class:`MissionReader`: seek by time, stream chunk by chunk, recover cut files.
+- :class:`MissionReader`: any valid MCAP file; seek by time, stream chunk by chunk, recover
+  cut or damaged files, count what a damaged chunk held (:class:`Loss`).
 """
 
 from .codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
@@ -21,14 +22,14 @@ from .errors import (
     UnknownSchemaError,
 )
 from .foxglove import foxglove_topic
-from .reader import ChannelInfo, MissionReader, Recorded, RecordingInfo
+from .reader import ChannelInfo, Loss, MissionReader, Recorded, RecordingInfo
 from .registry import CodecRegistry
 from .writer import COMPRESSIONS, MissionWriter
 
 __all__ = [
     "CodecRegistry", "Codec", "MessageCodec", "BuiltinCodec", "SCHEMA_ENCODING",
     "MESSAGE_ENCODING", "MissionWriter", "COMPRESSIONS", "MissionReader", "RecordingInfo",
-    "ChannelInfo", "Recorded", "foxglove_topic",
+    "ChannelInfo", "Recorded", "Loss", "foxglove_topic",
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",

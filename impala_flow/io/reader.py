@@ -1,15 +1,21 @@
 """MissionReader: decode a recorded mission, streaming chunk by chunk through the index.
 
-A complete file is mapped through its summary (chunk index, statistics, metadata index),
-so :meth:`MissionReader.messages` seeks by time without reading what it skips. A file cut
-short (no footer or summary, e.g. its recorder was SIGKILLed) is mapped by a forward scan
-up to its last complete chunk, every chunk CRC-checked; :meth:`MissionReader.info` then
-says ``truncated`` and how many messages were recovered.
+Any valid MCAP file reads, whoever wrote it. A file whose summary is complete (chunk index,
+statistics, nothing outside the indexed chunks) is mapped through it, so
+:meth:`MissionReader.messages` seeks by time without reading what it skips. Any other file
+(no summary, no chunk or message index, no statistics, messages outside chunks, a damaged
+summary, or a file cut short because its recorder was SIGKILLed) is mapped by one forward
+scan, every chunk CRC-checked; :meth:`MissionReader.info` then says ``truncated`` and how
+many messages were recovered. Messages come in (log time, file order) order, as the
+official ``mcap`` reader gives them once sorted by log time.
 
 Bad files raise one :class:`~impala_flow.io.errors.RecordingError` subclass with a one-line
 message naming the file and what is wrong. With ``strict=False`` (default) whatever is still
-valid stays readable: a truncated file is recovered, a corrupt chunk is skipped and counted
-in ``info().problems``; with ``strict=True`` both raise.
+valid stays readable: a truncated file is recovered, a damaged record or a corrupt chunk is
+skipped and listed in ``info().problems`` (one line naming the file and the offset), and the
+messages a corrupt chunk held are counted per stream in :attr:`MissionReader.losses` (from
+the chunk's message indexes: how many, on which topic, between which times); with
+``strict=True`` both raise.
 """
 
 from __future__ import annotations
@@ -17,10 +23,12 @@ from __future__ import annotations
 import heapq
 import logging
 import os
+import stat
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
+import numpy as np
 from mcap.opcode import Opcode
 
 from . import _mcapfile as mf
@@ -35,7 +43,7 @@ from .errors import (
 from .foxglove import MIRROR_KEY
 from .registry import CodecRegistry
 
-__all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded"]
+__all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +70,25 @@ class ChannelInfo:
 
 
 @dataclass(frozen=True)
+class Loss:
+    """Messages a damaged chunk held that cannot be read: ``count`` messages of ``topic``
+    stamped from ``start_ns`` to ``end_ns``; ``topic``/``count`` None when the file has no
+    message index to say (the chunk's time range is then that of the chunk header)."""
+
+    topic: str | None
+    count: int | None
+    start_ns: int
+    end_ns: int
+    offset: int  # of the chunk in the file
+
+    def __str__(self) -> str:
+        n = "an unknown number of" if self.count is None else str(self.count)
+        on = "unknown topics" if self.topic is None else repr(self.topic)
+        return (f"{n} messages of {on} lost (t={self.start_ns * 1e-9:.3f}..{self.end_ns * 1e-9:.3f} s, "
+                f"chunk at offset {self.offset})")
+
+
+@dataclass(frozen=True)
 class RecordingInfo:
     """What ``impala-flow info`` prints."""
 
@@ -74,12 +101,20 @@ class RecordingInfo:
     compression: str  # "zstd", "lz4", "none", or "zstd+lz4" when mixed
     chunk_count: int
     truncated: bool
-    recovered_count: int | None  # messages recovered from a truncated file, else None
+    recovered_count: int | None  # recorded messages recovered from a truncated file (no mirrors)
     corrupt_chunks: int
     problems: tuple[str, ...]
     metadata: dict[str, dict[str, str]]
     library: str
     profile: str
+    mirror_count: int = 0  # of message_count, the Foxglove mirror copies
+    attachments: tuple[tuple[str, str, int], ...] = ()  # name, media type, bytes
+    verified: bool = False  # counts are readable messages, every CRC and index checked
+
+    @property
+    def complete(self) -> bool:
+        """Not truncated and no problem found."""
+        return not self.truncated and not self.problems and not self.corrupt_chunks
 
     @property
     def duration_ns(self) -> int:
@@ -105,6 +140,14 @@ class MissionReader:
         self.codecs = codecs if codecs is not None else CodecRegistry.with_standard_types()
         self.strict = strict
         try:
+            kind = os.stat(self.path).st_mode  # before open(): opening a FIFO would block
+        except OSError as e:
+            raise RecordingError(self.path, f"cannot open ({e.strerror})") from None
+        if not stat.S_ISREG(kind):
+            what = "a directory" if stat.S_ISDIR(kind) else "a FIFO" if stat.S_ISFIFO(kind) else \
+                "not a regular file"
+            raise RecordingError(self.path, f"{what}, not an MCAP recording")
+        try:
             self._f = open(self.path, "rb")  # noqa: SIM115 - closed by close()
         except OSError as e:
             raise RecordingError(self.path, f"cannot open ({e.strerror})") from None
@@ -115,6 +158,9 @@ class MissionReader:
             raise
         self._codecs: dict[int, Codec | UnknownSchemaError] = {}
         self.undecodable: dict[str, UnknownSchemaError] = {}
+        self.losses: list[Loss] = []  # messages of damaged chunks met so far (each once)
+        self._lost_keys: set[tuple[int, int | None]] = set()
+        self._verified: dict[int, int] | None = None
 
     def _open(self) -> mf.FileMap:
         size = os.fstat(self._f.fileno()).st_size
@@ -124,21 +170,25 @@ class MissionReader:
         except RecordingError as e:  # corrupt summary: recover by scanning
             if self.strict:
                 raise
-            fm = mf.scan(self.path, self._f, size, truncated=False)
+            fm = mf.scan(self.path, self._f, size, truncated=not mf.footer_ok(self._f, size))
             fm.problems.insert(0, e)
             return fm
         if fm is not None:
             if not sum(fm.counts.values()):
                 fm.start_ns = fm.end_ns = None
             return fm
-        fm = mf.scan(self.path, self._f, size, truncated=True)
+        fm = mf.scan(self.path, self._f, size, truncated=not mf.footer_ok(self._f, size))
         if fm.truncated and self.strict:
             raise TruncatedRecordingError(
                 self.path, f"truncated recording (no footer/summary); "
                            f"{sum(fm.counts.values())} messages recoverable")
+        if self.strict and fm.problems:
+            raise fm.problems[0]
         if fm.truncated:
             log.info("%s: truncated recording, %d messages recovered", self.path,
-                        sum(fm.counts.values()))
+                     sum(fm.counts.values()))
+        for p in fm.problems:
+            log.warning("%s", p)
         return fm
 
     # --- description -----------------------------------------------------------------------
@@ -182,33 +232,46 @@ class MissionReader:
         raise KeyError(f"{self.path}: no topic {topic!r} (recorded: {sorted(self.topics)})")
 
     def info(self) -> RecordingInfo:
+        """What the file holds. Counts are those of the summary's statistics (or of the scan)
+        until :meth:`verify` ran; then they are the messages actually readable."""
         fm = self._map
-        total = sum(fm.counts.values())
+        counts = fm.counts if self._verified is None else self._verified
+        total = sum(counts.values())
         dur_s = ((fm.end_ns or 0) - (fm.start_ns or 0)) * 1e-9
         chans = []
+        mirrors = 0
         for cid, ch in sorted(fm.channels.items()):
             s = fm.schemas.get(ch.schema_id)
-            n = fm.counts.get(cid, 0)
+            n = counts.get(cid, 0)
+            mirror = ch.metadata.get(MIRROR_KEY)
+            mirrors += n if mirror else 0
             chans.append(ChannelInfo(
                 ch.topic, s.name if s else "", s.encoding if s else "", ch.message_encoding,
-                n, max(n - 1, 0) / dur_s if dur_s > 0 else 0.0, ch.metadata.get(MIRROR_KEY),
+                n, max(n - 1, 0) / dur_s if dur_s > 0 else 0.0, mirror,
                 not isinstance(self._codec(cid), UnknownSchemaError)))
-        comps = sorted({c.compression or "none" for c in fm.chunks})
-        corrupt = len(fm.corrupt_offsets)
+        chunks = [c for c in fm.chunks if not c.loose]
+        comps = sorted({c.compression or "none" for c in chunks if c.offset not in fm.corrupt_offsets})
         return RecordingInfo(
             path=self.path, size_bytes=fm.size, channels=tuple(chans), message_count=total,
             start_ns=fm.start_ns, end_ns=fm.end_ns, compression="+".join(comps) or "none",
-            chunk_count=len(fm.chunks) + corrupt, truncated=fm.truncated,
-            recovered_count=total if fm.truncated else None, corrupt_chunks=corrupt,
+            chunk_count=len(chunks), truncated=fm.truncated,
+            recovered_count=total - mirrors if fm.truncated else None,
+            corrupt_chunks=len(fm.corrupt_offsets),
             problems=tuple(str(p) for p in fm.problems), metadata=dict(fm.metadata),
             library=fm.header.library if fm.header else "",
-            profile=fm.header.profile if fm.header else "")
+            profile=fm.header.profile if fm.header else "", mirror_count=mirrors,
+            attachments=tuple(a[:3] for a in fm.attachments), verified=self._verified is not None)
 
     def verify(self) -> list[str]:
-        """Read and CRC-check every chunk (without decoding); return the problems found."""
-        for ref in self._map.chunks:
-            self._load(ref)
-        return [str(p) for p in self._map.problems]
+        """Read every chunk and check it against everything that describes it: its CRC, its
+        header's times, its message indexes (every entry points at a message of that channel
+        and time, every message has its entry), the chunk index and the statistics; count
+        the readable messages per channel (:meth:`info` then reports those). Returns every
+        problem found, each once (an empty list: the file is whole)."""
+        from ._verify import verify_file
+
+        self._verified, problems = verify_file(self.path, self._f, self._map)
+        return problems
 
     # --- messages --------------------------------------------------------------------------
 
@@ -219,7 +282,8 @@ class MissionReader:
         ``topics=None`` reads every channel a codec reads (channels of unknown schema are
         skipped and listed in :attr:`undecodable`; Foxglove mirrors are skipped); naming a
         topic whose schema is unknown raises UnknownSchemaError. ``raw=True`` yields the
-        payload bytes undecoded. Only the chunks overlapping the time range are read.
+        payload bytes undecoded. Only the chunks overlapping the time range are read. The
+        messages of a damaged chunk are skipped and counted in :attr:`losses`.
         """
         wanted = self._select(topics, raw)
         refs = [r for r in self._map.chunks
@@ -228,6 +292,16 @@ class MissionReader:
                 and (r.channel_ids is None or not r.channel_ids.isdisjoint(wanted))]
         refs.sort(key=lambda r: (r.start_ns, r.offset))
         return self._merge(refs, wanted, start_ns, end_ns)
+
+    def lost_counts(self) -> dict[str, int | None]:
+        """Topic -> messages lost so far (None: some of unknown count); ``"?"``: losses
+        whose topic the file cannot tell (no message index)."""
+        out: dict[str, int | None] = {}
+        for loss in self.losses:
+            key = loss.topic or "?"
+            prev = out.get(key, 0)
+            out[key] = None if prev is None or loss.count is None else prev + loss.count
+        return out
 
     def _select(self, topics: Iterable[str] | None, raw: bool) -> dict[int, tuple[str, Any]]:
         wanted: dict[int, tuple[str, Any]] = {}
@@ -256,22 +330,49 @@ class MissionReader:
         return wanted
 
     def _load(self, ref: mf.ChunkRef) -> memoryview | None:
+        if ref.offset in self._map.corrupt_offsets:
+            return None
         try:
             return mf.read_chunk(self.path, self._f, ref)
         except CorruptChunkError as e:
             if self.strict:
                 raise
-            if ref.offset not in self._map.corrupt_offsets:
-                self._map.corrupt_offsets.add(ref.offset)
-                self._map.problems.append(e)
-                log.warning("%s (skipped)", e)
+            self._map.corrupt_offsets.add(ref.offset)
+            self._map.problems.append(e)
+            log.warning("%s (skipped)", e)
             return None
+
+    def _count_loss(self, ref: mf.ChunkRef, wanted: dict[int, tuple[str, Any]],
+                    lo: int | None, hi: int | None) -> None:
+        """Record in :attr:`losses` the wanted messages of the damaged chunk ``ref`` that
+        fall in [lo, hi), from its message indexes (each chunk and channel once)."""
+        known: set[int] = set()
+        for cid, at in sorted(ref.index.items()):
+            try:
+                cid, entries = mf.read_message_index(self.path, self._f, at, self._map.size)
+            except RecordingError:
+                continue
+            known.add(cid)
+            if cid not in wanted or (ref.offset, cid) in self._lost_keys:
+                continue
+            t = entries[:, 0].astype(np.int64)
+            t = t[((lo is None) | (t >= (lo or 0))) & ((hi is None) | (t < (hi or 0)))]
+            if len(t):
+                self._lost_keys.add((ref.offset, cid))
+                self.losses.append(Loss(wanted[cid][0], len(t), int(t.min()), int(t.max()), ref.offset))
+        if not known and (ref.offset, None) not in self._lost_keys:
+            self._lost_keys.add((ref.offset, None))
+            start = ref.start_ns if lo is None else max(ref.start_ns, lo)
+            end = ref.end_ns if hi is None else min(ref.end_ns, hi - 1)
+            topic = wanted[next(iter(wanted))][0] if len(wanted) == 1 else None
+            self.losses.append(Loss(topic, None, start, max(start, end), ref.offset))
 
     def _chunk_messages(self, ref: mf.ChunkRef, wanted: dict[int, tuple[str, Any]],
                         lo: int | None, hi: int | None) -> list[tuple[int, int, int, Any]]:
         """(t_ns, channel id, seq, payload view) of the wanted messages of one chunk."""
         records = self._load(ref)
         if records is None:
+            self._count_loss(ref, wanted, lo, hi)
             return []
         out = []
         unpack, msg = mf.MSG_HEAD.unpack_from, Opcode.MESSAGE
@@ -295,7 +396,8 @@ class MissionReader:
 
     def _merge(self, refs: list[mf.ChunkRef], wanted: dict, lo: int | None,
                hi: int | None) -> Iterator[Recorded]:
-        """k-way merge of chunks by time; a chunk is read only when its turn comes."""
+        """k-way merge of chunks by (time, file order); a chunk is read only when its turn
+        comes (``refs`` sorted by (start time, offset))."""
         heap: list[tuple[int, int, int, tuple]] = []
         n = len(refs)
         for i, ref in enumerate(refs):
@@ -304,12 +406,14 @@ class MissionReader:
             items = self._chunk_messages(ref, wanted, lo, hi)
             times = [it[0] for it in items]
             ordered = all(a <= b for a, b in zip(times, times[1:], strict=False))
-            if not heap and ordered and (i + 1 == n or ref.end_ns <= refs[i + 1].start_ns):
+            nxt = refs[i + 1] if i + 1 < n else None
+            if not heap and ordered and (nxt is None or ref.end_ns < nxt.start_ns or (
+                    ref.end_ns == nxt.start_ns and ref.offset < nxt.offset)):
                 for it in items:  # fast path: no overlap with what comes next
                     yield self._emit(it, wanted)
                 continue
             for k, it in enumerate(items):
-                heapq.heappush(heap, (it[0], i, k, it))
+                heapq.heappush(heap, (it[0], ref.offset, k, it))
         while heap:
             yield self._emit(heapq.heappop(heap)[3], wanted)
 

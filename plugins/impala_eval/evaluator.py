@@ -10,7 +10,7 @@ from impala_flow.component import Component, Input, Param
 from impala_flow.msgs import Grid, Pose2D
 
 from .metrics import TrajectoryMetrics, trajectory_metrics
-from .report import format_metrics, write_report
+from .report import find_gaps, format_metrics, write_report
 
 __all__ = ["TrajectoryEvaluator"]
 
@@ -27,14 +27,17 @@ class TrajectoryEvaluator(Component):
     least squares or first pose), and at stop() writes ``report``: metrics.json, error vs
     distance (seed Fig. 12), trajectory over the map (Fig. 10b), the map; with ``pairs``
     also every consecutive pair's relative-motion error (scan-to-scan registration against
-    the truth's motion between the same times) and their figure, pair_errors.png."""
+    the truth's motion between the same times) and their figure, pair_errors.png. Data that
+    never arrived is stated, never averaged away: time ranges of a stream with no sample for
+    more than three median periods (a damaged chunk of the recording, a dropped sensor) go
+    to metrics.json (``gaps``), the printed metrics and the error figure, with a warning."""
 
     estimate = Input(Pose2D, maxsize=1 << 20, doc="estimated poses (each one evaluated)")
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
     baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a second estimate (dead reckoning)")
     map = Input(Grid, policy="sampling", required=False, doc="the radar map drawn under the trajectories")
 
-    report = Param(str, default="", doc="report folder ('' = metrics only, no files)")
+    report = Param(str, default="", path="write_dir", doc="report folder ('' = metrics only, no files)")
     align = Param(str, default="rigid", choices=("rigid", "first"), doc="alignment before the ATE")
     segment_m = Param(float, default=100.0, gt=0, doc="segment length of the relative error")
     title = Param(str, default="R-SLAM", doc="name of the estimate in the figures")
@@ -63,8 +66,13 @@ class TrajectoryEvaluator(Component):
             self.figures = {"error": f"not enough poses (estimate {len(est)}, truth {len(truth)})"}
             return self.figures
         tt, txyt = _arrays(truth)
+        gaps = {k: g for k in ("estimate", "truth", "baseline")
+                if (g := find_gaps(np.array([s[0] for s in self.samples[k]], np.int64)))}
         self.metrics = trajectory_metrics(*_arrays(est), tt, txyt, self.align, self.segment_m)
         self.figures = self.metrics.figures()
+        if gaps:
+            self.figures["gaps"] = gaps
+            self.figures["gap_total_s"] = round(sum(b - a for g in gaps.values() for a, b in g), 6)
         if len(base) >= 2:
             self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m)
             self.figures.update(self.baseline_metrics.figures("baseline_"))
@@ -81,6 +89,8 @@ class TrajectoryEvaluator(Component):
             self.log.warning("no report: %s", figures.get("error"))
             return
         self.log.info("trajectory metrics\n%s", format_metrics(figures))
+        if figures.get("gaps"):
+            self.log.warning("data missing, metrics cover only what was received: %s", figures["gaps"])
         if self.report:
             write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
                          (m.rotation, m.translation_m), self.title, self.map_scale, self.baseline_title,
@@ -88,5 +98,5 @@ class TrajectoryEvaluator(Component):
 
     def summary(self) -> dict:
         keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct",
-                "pair_trans_err_mean_m", "pair_rot_err_mean_deg")
+                "pair_trans_err_mean_m", "pair_rot_err_mean_deg", "gap_total_s")
         return {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}

@@ -2,7 +2,8 @@
 
 ``write_report(folder, ...)`` writes::
 
-    metrics.json        every figure, units in the key names; the baseline's prefixed baseline_
+    metrics.json        every figure, units in the key names; the baseline's prefixed baseline_;
+                        ``gaps``: per stream, the time ranges with no sample ([start_s, end_s])
     error_vs_distance.png   position error along the path (Fig. 12), baseline beside
     trajectory_map.png  estimated and true trajectories over the radar map (Fig. 10b)
     map.png             the radar map alone
@@ -23,10 +24,28 @@ from impala_flow.msgs import Grid
 
 from .metrics import TrajectoryMetrics
 
-__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE"]
+__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps"]
 
 METRICS_FILE = "metrics.json"
 _EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
+
+
+def find_gaps(t_ns: np.ndarray, factor: float = 3.0) -> list[list[float]]:
+    """Time ranges with no sample: ``[start_s, end_s]`` (mission seconds) between consecutive
+    samples more than ``factor`` median periods apart (lost chunks, a dropped sensor)."""
+    t = np.sort(np.asarray(t_ns, np.int64))
+    if len(t) < 3:
+        return []
+    dt = np.diff(t)
+    period = float(np.median(dt))
+    at = np.nonzero(dt > factor * max(period, 1.0))[0]
+    return [[round(t[i] * 1e-9, 6), round(t[i + 1] * 1e-9, 6)] for i in at]
+
+
+def _gap_text(figures: dict[str, Any]) -> str:
+    gaps = figures.get("gaps") or {}
+    return "; ".join(f"{stream} t=" + ", ".join(f"{a:.3f}..{b:.3f} s" for a, b in ranges)
+                     for stream, ranges in gaps.items() if ranges)
 
 
 def _figure(w: float, h: float):  # type: ignore[no-untyped-def]
@@ -100,6 +119,9 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     axes[0].set_title(f"Position error vs truth after {est.align} alignment"
                       + (f" ({title} alone, then beside the baseline)" if apart else ""))
     axes[-1].set_xlabel("distance travelled (m)")
+    if _gap_text(figures):  # the metrics cover only what was received: say what was not
+        axes[0].text(0.99, 0.97, "DATA MISSING: " + _gap_text(figures), transform=axes[0].transAxes,
+                     ha="right", va="top", color="#d62728", fontsize=8, wrap=True)
     fig.savefig(folder / "error_vs_distance.png")
 
     fig = _figure(7.5, 7.0)
@@ -185,6 +207,8 @@ def format_metrics(figures: dict[str, Any]) -> str:
         cells = "".join(f"{'n/a' if v is None or (isinstance(v, float) and math.isnan(v)) else f'{v:.3f}':>12s}"
                         for v in vals)
         lines.append(f"{label:22s}{cells}  {unit}")
+    if _gap_text(figures):
+        lines.append(f"DATA MISSING (no sample): {_gap_text(figures)}; the metrics cover only what was received")
     return "\n".join(lines)
 
 

@@ -60,10 +60,13 @@ class Replayer(Source):
     mission time keeps increasing; each jump is announced on output ``time_jump`` (the
     offset in ns) and by calling ``on_time_jump(offset_ns)`` of every component
     downstream, after everything earlier than the jump has been processed. A truncated
-    recording replays what it holds.
+    recording replays what it holds. Messages a damaged chunk held are never silent: they
+    are counted per output (``summary()["lost"]``, from the file's message indexes) with the
+    time ranges missing (``summary()["lost_ranges_s"]``, seconds from the first sample), and
+    logged as a warning; a ``start_s`` past the end of the recording warns too.
     """
 
-    path = Param(str, doc="MCAP recording")
+    path = Param(str, path="read", doc="MCAP recording")
     streams = Param(list, default=[], doc="topics to replay (glob patterns); empty = all")
     rename = Param(dict, default={}, doc="recorded topic -> output port name")
     start_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to start at")
@@ -73,6 +76,9 @@ class Replayer(Source):
 
     @classmethod
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
+        start, end = params.get("start_s", 0.0), params.get("end_s", 0.0)
+        if end > 0 and end <= start:  # checked at validation: the graph never starts
+            raise ValueError(f"end_s {end} <= start_s {start}: nothing would be replayed")
         with MissionReader(params["path"], run_codecs()) as r:
             ports = _select(r, params["streams"], params["rename"])
             outs = {p: Output(r.topic_type(t), doc=f"recorded topic {t}")
@@ -97,6 +103,10 @@ class Replayer(Source):
         if info.truncated:
             self.log.warning("%s", f"{self.path}: truncated recording, replaying the "
                                    f"{info.recovered_count} messages recovered")
+        if info.start_ns is not None and info.end_ns is not None \
+                and self.start_s * 1e9 > info.end_ns - info.start_ns:
+            self.log.warning("%s", f"{self.path}: start_s={self.start_s} is past the end of the recording "
+                                   f"({info.duration_s:.3f} s): nothing to replay")
         self.replayed = 0
         self.jumps: list[int] = []
 
@@ -153,6 +163,23 @@ class Replayer(Source):
         span = (min(hi, end) if hi is not None else end) - lo
         return span * self.loops if self.loops else None
 
+    def losses(self) -> dict[str, int | None]:
+        """Output port -> messages lost to damaged chunks (None: an unknown number; ``"?"``:
+        the file cannot say which topic)."""
+        reader = getattr(self, "reader", None)
+        if reader is None:
+            return {}
+        return {self.ports.get(t, t): n for t, n in reader.lost_counts().items()}
+
     def summary(self) -> dict[str, Any]:
-        return {"path": self.path, "replayed": getattr(self, "replayed", 0),
-                "loops": len(getattr(self, "jumps", [])) + 1}
+        out: dict[str, Any] = {"path": self.path, "replayed": getattr(self, "replayed", 0),
+                               "loops": len(getattr(self, "jumps", [])) + 1}
+        reader = getattr(self, "reader", None)
+        if reader is not None and reader.losses:
+            t0 = reader.info().start_ns or 0
+            out["lost"] = self.losses()
+            out["lost_ranges_s"] = [
+                [self.ports.get(loss.topic, loss.topic) if loss.topic else "?",
+                 round((loss.start_ns - t0) * 1e-9, 6), round((loss.end_ns - t0) * 1e-9, 6)]
+                for loss in reader.losses]
+        return out

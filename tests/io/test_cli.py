@@ -63,8 +63,10 @@ def test_export_csv(mission: Path, tmp_path: Path, capsys: pytest.CaptureFixture
     out = tmp_path / "pose.csv"
     assert main(["export", str(mission), "--topic", "slam/pose", "--csv", "-o", str(out)]) == 0
     rows = list(csv.reader(out.read_text().splitlines()))
-    assert rows[0] == ["t_ns", "x_m", "y_m", "theta_rad", "frame"]
-    assert rows[1] == ["0", "0.0", "2.0", "0.5", "map"] and len(rows) == 101
+    cov = [f"cov_xyt.{i}.{j}" for i in range(3) for j in range(3)]  # the covariance is not dropped
+    assert rows[0] == ["t_ns", "x_m", "y_m", "theta_rad", *cov, "frame"]
+    eye = [str(float(i == j)) for i in range(3) for j in range(3)]
+    assert rows[1] == ["0", "0.0", "2.0", "0.5", *eye, "map"] and len(rows) == 101
     assert main(["export", str(mission), "--topic", "count", "--csv"]) == 0
     rows = list(csv.reader(io.StringIO(capsys.readouterr().out)))
     assert rows[0] == ["t_ns", "value"] and rows[-1] == ["990000000", "99"]

@@ -198,6 +198,11 @@ def test_replayer_reports_bad_files_and_unknown_streams(tmp_path: Path) -> None:
                                                       "streams": ["lidar/*"]}}}})
     with pytest.raises(Exception, match="matches no recorded topic"):
         session().load_text(text)
+    # a window that replays nothing is refused at validation, located at the component
+    text = yaml.safe_dump({"name": "r", "components": {
+        "mission": {"type": "io.Replayer", "params": {"path": str(good), "start_s": 2.0, "end_s": 1.0}}}})
+    with pytest.raises(Exception, match=r"'mission' \(io.Replayer\): end_s 1.0 <= start_s 2.0"):
+        session().load_text(text)
 
 
 def test_replayer_replays_a_truncated_recording(tmp_path: Path) -> None:
