@@ -12,13 +12,26 @@ Signal model (seed 1 eq. 1). In one beam each ramp's beat signal is the coherent
 makes the coherent sum speckle (seed 1 §2.3). The up ramp is centred T/2 before the beam
 time, the down ramp T/2 after it. ``R_i`` is the slant range (radar ``height_m`` above the
 ground), ``V_i = dR_i/dt`` from the vehicle's and the scatterer's velocities. ``g2`` is the
-two-way normalised antenna power pattern, Gaussian with the preset's 3 dB beam width
-``theta_3`` in azimuth and ``theta_e`` in elevation::
+two-way normalised antenna power pattern: in azimuth the Hann-on-pedestal aperture of
+:mod:`impala_radar.sim.antenna` with its sidelobes (``sidelobe_db``, default -25 dB one way),
+or the Gaussian exp(-8 ln2 (d_az / theta_3)^2) with ``sidelobe_db = None``; in elevation
+exp(-8 ln2 (el / theta_e)^2). Each scatterer is evaluated within the azimuth window where
+its echo can exceed the culling level, at most ``pattern_cut_db`` (60 dB) down.
 
-    g2 = exp(-8 ln2 [(d_az / theta_3)^2 + (el / theta_e)^2])
+Power budget: P_t G^2 = ``RadarParams.pt_g2_w``: P_t = ``tx_power_dbm`` and G =
+``antenna_gain_db`` when given (K2Pi, seed 2 Table I: 20 dBm, 20 dB), otherwise
+G = 26 000 / (theta_3 theta_e in degrees) and P_t = EIRP / G (IMPALA: EIRP 18 dBm, seed 1
+Fig. 2). Distributed clutter follows the constant-gamma grazing law, and vegetation
+moves between turns (:mod:`impala_radar.sim.clutter`); transmitter leakage, phase-noise
+skirts and facade ghosts are in :mod:`impala_radar.sim.receiver`.
 
-cut at ``pattern_cut_db`` (40 dB: |d_az| <= 1.29 theta_3, a window 2.6 beam widths wide).
-EIRP = P_t G = 18 dBm (seed 1 Fig. 2); G = 26 000 / (theta_3 theta_e in degrees).
+Single-ramp (sawtooth) radars (``RadarConfig.doppler = False``, the Navtech): one ramp
+of duration 1/Fm per beam sweeping dF, slope S = dF Fm, centred on the beam time; beat
+f = 2 S R / c + f_d. The spectrum is indexed on RadarConfig's nominal axis (bin_hz, on
+which f_r = 4 dF Fm R / c), i.e. nominal = 2 x physical Hz, so ``range_of_bin_m`` and
+dR = c / (2 dF) hold, and the Doppler moves the apparent range by dR = c f_d / (2 S) =
+V f0 / (dF Fm) (Navtech: 0.0478 s x V, 4.8 cm per m/s). The noise is k T0 F per physical
+hertz, so the noise per bin, k T0 F ENBW / T, is 3 dB lower than a roof ramp's (T = 1/Fm).
 
 Fastest exact formulation. Each ramp is sampled at fs = 2 n_bins bin_hz (N = fs T samples,
 288 for IMPALA), weighted by the window w (Hann by default, ``rect`` for the unweighted
@@ -56,15 +69,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.fft
 
 from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
+from .antenna import AzimuthPattern
+from .clutter import grazing_factor
+from .receiver import phase_noise_skirts
+
 __all__ = [
     "RadarParams", "Echoes", "Synthesizer", "beat_frequencies_hz", "received_power_w",
-    "two_way_gain", "echoes", "noise_power_per_bin_w", "BOLTZMANN_JPK",
+    "two_way_gain", "echoes", "noise_power_per_bin_w", "BOLTZMANN_JPK", "azimuth_pattern",
+    "apparent_range_shift_m",
 ]
 
 BOLTZMANN_JPK = 1.380649e-23
@@ -82,26 +101,85 @@ def _kernel(u):
 class RadarParams:
     """Radar properties the message contract does not carry (documented assumptions)."""
 
-    eirp_dbm: float = 18.0  # seed 1 Fig. 2
+    eirp_dbm: float = 18.0  # seed 1 Fig. 2; used when tx_power_dbm is None (P_t = EIRP / G)
+    tx_power_dbm: float | None = None  # P_t (K2Pi, seed 2 Table I: 20 dBm); None: EIRP / G
+    antenna_gain_db: float | None = None  # G (K2Pi: 20 dB); None: 26 000 / (theta_az theta_el)
     noise_figure_db: float = 10.0
     temperature_k: float = 290.0
     elevation_beam_width_rad: float = math.radians(20.0)  # fan beam (assumed)
-    pattern_cut_db: float = 40.0
+    pattern_cut_db: float = 60.0  # deepest two-way pattern level simulated (sidelobes)
+    sidelobe_db: float | None = -25.0  # one-way highest azimuth sidelobe; None: Gaussian beam
+    clutter_cut_db: float = 15.0  # two-way pattern depth for distributed clutter (0.7 % of power left out)
+    window_below_noise_db: float = 10.0  # a scatterer's azimuth window ends this far below noise
     window: str = "hann"  # "hann" or "rect"
     thermal_noise: bool = True
     cull_below_noise_db: float = 30.0  # drop echoes this far below the noise per bin
     clockwise: bool = False  # sense of the antenna's rotation seen from above (Navtech: clockwise)
     start_azimuth_rad: float = 0.0  # azimuth where each turn starts (vehicle frame, CCW from the heading)
+    grazing_ref_deg: float | None = 5.0  # clutter sigma0 given at this grazing angle (constant gamma)
+    speckle_range_m: float = 20.0  # clutter tiles split for developed speckle within this range
+    speckle_max_split: int = 8  # at most q x q sub-points per tile
+    vegetation_motion_m: float = 1.0e-3  # rms leaf displacement between turns (phase jitter)
+    vegetation_rcs_jitter_db: float = 1.5  # per-turn log-normal RCS jitter of leaves (dB std)
+    shadows: bool = True  # trunks, tree crowns, parked and moving cars shadow what is behind
+    leakage_dbm: float | None = -100.0  # transmitter leakage after the IF high-pass; None: off
+    leakage_range_m: float = 0.3
+    phase_noise_dbc_hz: float | None = -95.0  # SSB phase noise at phase_noise_offset_hz; None: off
+    phase_noise_offset_hz: float = 100.0e3
+    multipath_reflection_db: float | None = -6.0  # facade power reflection per bounce; None: off
+    multipath_min_rcs_m2: float = 1.0  # scatterers mirrored by facades (ghosts)
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("sidelobe_db", self.sidelobe_db is None or -42.7 <= self.sidelobe_db <= -13.26,
+             "in [-42.7, -13.26] dB (Hamming .. uniform aperture) or null"),
+            ("grazing_ref_deg", self.grazing_ref_deg is None or 0.0 < self.grazing_ref_deg <= 90.0,
+             "in (0, 90] or null"),
+            ("pattern_cut_db", self.pattern_cut_db > 0.0, "> 0"),
+            ("clutter_cut_db", self.clutter_cut_db > 0.0, "> 0"),
+            ("speckle_range_m", self.speckle_range_m >= 0.0, ">= 0"),
+            ("speckle_max_split", self.speckle_max_split >= 1, ">= 1"),
+            ("vegetation_motion_m", self.vegetation_motion_m >= 0.0, ">= 0"),
+            ("vegetation_rcs_jitter_db", self.vegetation_rcs_jitter_db >= 0.0, ">= 0"),
+            ("leakage_range_m", self.leakage_range_m > 0.0, "> 0"),
+            ("phase_noise_offset_hz", self.phase_noise_offset_hz > 0.0, "> 0"),
+            ("multipath_reflection_db", self.multipath_reflection_db is None or self.multipath_reflection_db <= 0.0,
+             "<= 0 dB or null"),
+            ("multipath_min_rcs_m2", self.multipath_min_rcs_m2 >= 0.0, ">= 0"),
+            ("temperature_k", self.temperature_k > 0.0, "> 0"),
+        ]
+        for name, ok, what in checks:
+            if not ok:
+                raise ValueError(f"radar.{name} = {getattr(self, name)!r} must be {what}")
 
     def antenna_gain(self, config: RadarConfig) -> float:
         """Antenna gain G ~ 26 000 / (theta_az theta_el in degrees) (65 % efficiency)."""
         return 26000.0 / (math.degrees(config.beam_width_rad)
                           * math.degrees(self.elevation_beam_width_rad))
 
+    def pt_g2_w(self, config: RadarConfig) -> float:
+        """P_t G^2 (W) of the radar equation from tx_power_dbm / antenna_gain_db / eirp_dbm."""
+        gain = (10.0 ** (self.antenna_gain_db / 10.0) if self.antenna_gain_db is not None
+                else self.antenna_gain(config))
+        pt_w = (10.0 ** (self.tx_power_dbm / 10.0) * 1e-3 if self.tx_power_dbm is not None
+                else 10.0 ** (self.eirp_dbm / 10.0) * 1e-3 / gain)
+        return pt_w * gain * gain
+
     def cut_azimuth_rad(self, config: RadarConfig) -> float:
-        """Half-width in azimuth where the two-way Gaussian pattern is ``pattern_cut_db`` down."""
-        k = self.pattern_cut_db / (10.0 * math.log10(math.e) * 8.0 * math.log(2.0))
-        return config.beam_width_rad * math.sqrt(k)
+        """Half-width in azimuth beyond which the two-way pattern stays ``pattern_cut_db`` down."""
+        pattern = azimuth_pattern(config.beam_width_rad, self.sidelobe_db)
+        return float(pattern.window_rad(10.0 ** (-self.pattern_cut_db / 10.0)))
+
+
+@lru_cache(maxsize=32)
+def azimuth_pattern(beam_width_rad: float, sidelobe_db: float | None) -> AzimuthPattern:
+    """The (cached) azimuth pattern of a beam width and sidelobe level."""
+    return AzimuthPattern(beam_width_rad, sidelobe_db)
+
+
+def apparent_range_shift_m(radial_mps, config: RadarConfig):
+    """Single-ramp range-Doppler coupling: dR = c f_d / (2 S) = V f0 / (dF Fm), S = dF Fm."""
+    return np.asarray(radial_mps) * config.f0_hz / (config.bandwidth_hz * config.modulation_hz)
 
 
 def beat_frequencies_hz(range_m, radial_mps, config: RadarConfig):
@@ -112,17 +190,15 @@ def beat_frequencies_hz(range_m, radial_mps, config: RadarConfig):
 
 
 def two_way_gain(d_azimuth_rad, elevation_rad, config: RadarConfig, params: RadarParams):
-    """Two-way normalised Gaussian pattern g2 = exp(-8 ln2 [(daz/th3)^2 + (el/the)^2])."""
-    k = -8.0 * math.log(2.0)
-    return np.exp(k * ((d_azimuth_rad / config.beam_width_rad) ** 2
-                       + (elevation_rad / params.elevation_beam_width_rad) ** 2))
+    """Two-way normalised pattern: azimuth (:mod:`.antenna`) x exp(-8 ln2 (el / theta_e)^2)."""
+    g_az = azimuth_pattern(config.beam_width_rad, params.sidelobe_db).gain2(d_azimuth_rad)
+    return g_az * np.exp(-8.0 * math.log(2.0) * (elevation_rad / params.elevation_beam_width_rad) ** 2)
 
 
 def received_power_w(range_m, rcs_m2, gain2, config: RadarConfig, params: RadarParams):
-    """Radar equation P_r = P_t G^2 lambda^2 sigma g2 / ((4 pi)^3 R^4), P_t G = EIRP."""
+    """Radar equation P_r = P_t G^2 lambda^2 sigma g2 / ((4 pi)^3 R^4) (``RadarParams.pt_g2_w``)."""
     lam = SPEED_OF_LIGHT_MPS / config.f0_hz
-    eirp_w = 10.0 ** (params.eirp_dbm / 10.0) * 1e-3
-    k = eirp_w * params.antenna_gain(config) * lam**2 / (4.0 * math.pi) ** 3
+    k = params.pt_g2_w(config) * lam**2 / (4.0 * math.pi) ** 3
     return k * rcs_m2 * gain2 / range_m**4
 
 
@@ -152,23 +228,26 @@ class Echoes:
 
 def echoes(beam_index, radar_xy_m, radar_vxy_mps, beam_dir_rad, sc_xy_m, sc_z_m, sc_vxy_mps,
            rcs_m2, phase_rad, config: RadarConfig, params: RadarParams,
-           visible=None, range_limit_m: float = np.inf) -> Echoes:
+           visible=None, range_limit_m: float = np.inf, cut_rad=None, area_m2=None) -> Echoes:
     """Echoes of scatterers inside the beam pattern, dense over (beams x scatterers).
 
     Beam-side arrays have a leading axis B (``radar_xy_m`` (B, 2), ``beam_dir_rad`` (B,) the
     world direction of the antenna); scatterer-side arrays are (S, ...) or (B, S, ...) for
     scatterers moving during the turn; ``sc_vxy_mps`` may be None (static); ``visible`` is
-    None or a bool array broadcastable to (B, S) (occlusion).
+    None or a bool or float (two-way transmission, 0 = shadowed) array broadcastable to
+    (B, S); ``cut_rad`` the azimuth half-window per scatterer (default: ``pattern_cut_db``);
+    ``area_m2`` > 0 marks distributed clutter (grazing law, :mod:`.clutter`).
     """
     rx, ry = radar_xy_m[:, 0, None], radar_xy_m[:, 1, None]
     dx, dy = sc_xy_m[..., 0] - rx, sc_xy_m[..., 1] - ry
     c, s = np.cos(beam_dir_rad)[:, None], np.sin(beam_dir_rad)[:, None]
     along, across = dx * c + dy * s, dy * c - dx * s
     r2 = dx * dx + dy * dy
-    mask = (along > 0.0) & (np.abs(across) <= math.tan(params.cut_azimuth_rad(config)) * along)
+    tan_cut = np.tan(params.cut_azimuth_rad(config) if cut_rad is None else np.minimum(cut_rad, 1.5))
+    mask = (along > 0.0) & (np.abs(across) <= tan_cut * along)
     mask &= r2 <= range_limit_m**2
     if visible is not None:
-        mask &= visible
+        mask &= visible > 0
     bi, si = np.nonzero(mask)
 
     def at(a):  # gather a scatterer-side (S,) or (B, S) array at the selected pairs
@@ -184,7 +263,12 @@ def echoes(beam_index, radar_xy_m, radar_vxy_mps, beam_dir_rad, sc_xy_m, sc_z_m,
         v_rel_x = v_rel_x + at(sc_vxy_mps[..., 0])
         v_rel_y = v_rel_y + at(sc_vxy_mps[..., 1])
     radial = (dx * v_rel_x + dy * v_rel_y) / range_m  # V = dR/dt, eq. (2) sign convention
-    power = received_power_w(range_m, at(rcs_m2), gain2, config, params)
+    rcs = at(rcs_m2)
+    if area_m2 is not None:
+        rcs = rcs * grazing_factor(range_m, dz, at(area_m2), params.grazing_ref_deg)
+    if visible is not None and np.asarray(visible).dtype != bool:
+        rcs = rcs * at(visible)
+    power = received_power_w(range_m, rcs, gain2, config, params)
     keep = gain2 >= 10.0 ** (-params.pattern_cut_db / 10.0)
     return Echoes(np.asarray(beam_index)[bi][keep], range_m[keep], radial[keep], power[keep],
                   at(phase_rad)[keep])
@@ -196,8 +280,12 @@ class Synthesizer:
     def __init__(self, config: RadarConfig, params: RadarParams = RadarParams()):
         self.config, self.params = config, params
         self.fs_hz = 2.0 * config.n_bins * config.bin_hz
-        self.ramp_s = 0.5 / config.modulation_hz
-        self.n_samples = int(round(self.fs_hz * self.ramp_s))
+        # roof: two ramps of 1/(2 Fm); single ramp: one of 1/Fm, labelled on the nominal axis
+        self.single_ramp = not config.doppler
+        self.hz_per_nominal_hz = 0.5 if self.single_ramp else 1.0  # physical / nominal beat Hz
+        self.doppler_factor = 2.0 if self.single_ramp else 1.0  # nominal Hz per Hz of f_d
+        self.ramp_s = (1.0 if self.single_ramp else 0.5) / config.modulation_hz
+        self.n_samples = int(round(self.fs_hz * 0.5 / config.modulation_hz))
         self.n_fft = int(round(self.fs_hz / config.bin_hz))
         if self.n_samples > self.n_fft:
             raise ValueError(f"{config.name}: bin_hz {config.bin_hz} is wider than 1/T")
@@ -220,10 +308,11 @@ class Synthesizer:
         self._scale = 2.0 / self.window.sum()
         f_noise = 10.0 ** (params.noise_figure_db / 10.0)
         self.noise_sigma = math.sqrt(BOLTZMANN_JPK * params.temperature_k * f_noise
-                                     * self.fs_hz / 2.0)
+                                     * self.fs_hz * self.hz_per_nominal_hz / 2.0)
         self.lambda_m = SPEED_OF_LIGHT_MPS / config.f0_hz
         w = self.window
         self.noise_per_bin_w = float(self.noise_sigma**2 * 2.0 * np.sum(w**2) / w.sum() ** 2)
+        self.enbw_bins = float(len(w) * np.sum(w**2) / w.sum() ** 2)  # in 1/T units (1.5 Hann)
         self._cull_w = self.noise_per_bin_w * 10.0 ** (-params.cull_below_noise_db / 10.0)
 
     def signal(self, beam, f_hz, amplitude, phase_rad, n_beams: int) -> np.ndarray:
@@ -263,27 +352,46 @@ class Synthesizer:
         x = x[:, : self.config.n_bins] * self._scale
         return (0.5 * (x.real**2 + x.imag**2)).astype(np.float32)
 
-    def ramp(self, beam, f_hz, power_w, phase_rad, n_beams: int, rng) -> np.ndarray:
-        """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT."""
+    def ramp(self, beam, f_hz, power_w, phase_rad, n_beams: int, rng, range_m=None) -> np.ndarray:
+        """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT,
+        then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
         s = self.signal(beam, f_hz, np.sqrt(2.0 * power_w), phase_rad, n_beams).real
         if self.params.thermal_noise:
             s = s + rng.standard_normal(s.shape) * self.noise_sigma
-        return self.power_spectrum(s)
+        spec = self.power_spectrum(s)
+        p = self.params
+        if p.phase_noise_dbc_hz is not None and range_m is not None:
+            spec += phase_noise_skirts(
+                beam, f_hz, power_w, range_m, n_beams, self.config.bin_hz, self.config.n_bins,
+                self.config.bin_hz * self.hz_per_nominal_hz, self.ramp_s, self.enbw_bins,
+                self.noise_per_bin_w, p.phase_noise_dbc_hz, p.phase_noise_offset_hz, rng).astype(np.float32)
+        return spec
 
     def spectra(self, e: Echoes, n_beams: int, rng) -> tuple[np.ndarray, np.ndarray]:
-        """(up, down) power spectra; ``down`` is (n_beams, 0) for a radar without Doppler."""
+        """(up, down) power spectra; ``down`` is (n_beams, 0) for a radar without Doppler.
+
+        Roof (``config.doppler``): up ramp centred T/2 before the beam time, down ramp T/2
+        after it, f = f_r +- f_d. Single ramp (sawtooth, ``doppler = False``): one ramp of
+        1/Fm centred on the beam time sweeping dF, slope S = dF Fm, physical beat
+        f = 2 S R / c + f_d; the spectrum axis is RadarConfig's nominal one (bin_hz per bin,
+        f_nominal = 2 f = f_r + 2 f_d of eq. 2), so ``range_of_bin_m`` holds and a radial
+        speed V moves the apparent range by V f0 / (dF Fm) (:func:`apparent_range_shift_m`).
+        """
         if self.params.thermal_noise and len(e.power_w):
             strong = e.power_w >= self._cull_w
             if not strong.all():
                 e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
                            e.power_w[strong], e.phase_rad[strong])
-        f_r, f_d = beat_frequencies_hz(e.range_m, e.radial_mps, self.config)
+        # bin k holds range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m)
+        f_r, f_d = beat_frequencies_hz(e.range_m - self.config.range_offset_m, e.radial_mps, self.config)
         k = 4.0 * math.pi / self.lambda_m
+        if self.single_ramp:
+            up = self.ramp(e.beam, f_r + 2.0 * f_d, e.power_w, e.phase_rad + k * e.range_m,
+                           n_beams, rng, e.range_m)
+            return up, np.zeros((n_beams, 0), np.float32)
         half = 0.5 * self.ramp_s * e.radial_mps
         up = self.ramp(e.beam, f_r + f_d, e.power_w, e.phase_rad + k * (e.range_m - half),
-                       n_beams, rng)
-        if not self.config.doppler:
-            return up, np.zeros((n_beams, 0), np.float32)
+                       n_beams, rng, e.range_m)
         down = self.ramp(e.beam, f_r - f_d, e.power_w, e.phase_rad + k * (e.range_m + half),
-                         n_beams, rng)
+                         n_beams, rng, e.range_m)
         return up, down

@@ -6,13 +6,18 @@ scatterer that makes the coherent sum speckle), occluding segments (building wal
 :class:`Mover` objects. :class:`WorldBuilder` generates the parts from a seeded
 ``numpy.random.Generator``:
 
-- distributed clutter (grass, road surface) has a backscatter coefficient sigma0 (m^2/m^2);
-  a region of area A with density rho gets rho A scatterers of mean RCS sigma0 / rho
-  (log-normal texture), so the mean power does not depend on the density chosen;
+- distributed clutter (grass, road surface) has a backscatter coefficient sigma0 (m^2/m^2)
+  at the reference grazing angle; a region of area A with density rho gets one point per
+  tile of area 1/rho (stratified, ``area_m2`` and the tile centre ``tile_x_m``/``tile_y_m``
+  kept) whose ``rcs_m2`` is the tile's mean sigma0 / rho; the simulator draws an exponential
+  RCS (complex Gaussian amplitude) from it, so the mean power does not depend on the
+  density and speckle is developed (:mod:`.clutter`);
 - bushes and tree crowns are dense clusters, trunks, signs and car bodies strong points;
 - walls and metal sheds are dense strong scatterers along segments, with dihedral corners,
   and their segments occlude: per beam, a scatterer whose line of sight from the radar
-  crosses a segment gets no return (:meth:`World.visible`, vectorised ray-segment tests).
+  crosses a segment gets no return (:meth:`World.visible`, vectorised ray-segment tests);
+- trees (opaque trunk, foliage crown), parked cars and moving cars cast shadows through
+  discs with a height interval and a two-way transmission (:func:`disc_transmission`).
 
 The scenario worlds (``beynes``, ``campus``, ``semi_urban``, ``datmo``) are in
 :mod:`impala_radar.sim.scenes`; they return the world and their vehicle routes.
@@ -26,10 +31,19 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["KIND", "Mover", "Route", "World", "WorldBuilder"]
+__all__ = ["KIND", "VEGETATION_KINDS", "Mover", "Route", "World", "WorldBuilder", "car_discs",
+           "disc_transmission"]
 
 KIND = {"grass": 0, "bush": 1, "tree": 2, "wall": 3, "metal": 4, "road": 5, "car": 6,
-        "sign": 7, "mover": 8, "point": 9}
+        "sign": 7, "mover": 8, "point": 9, "trunk": 10}
+VEGETATION_KINDS = (KIND["bush"], KIND["tree"])  # leaves: jitter between turns (.clutter)
+
+# Shadowing discs (x, y, radius, z_bottom, z_top, two-way power transmission): a car body is
+# three discs along its axis, a tree a trunk (opaque up to the crown) and a crown of foliage.
+_CAR_DISCS = ((1.5, 0.9), (0.0, 0.9), (-1.5, 0.9))  # (x forward, radius): a car's body
+CAR_HEIGHT_M = 1.5
+CROWN_LOSS_DB = 12.0  # two-way foliage loss through a crown (about 1 dB/m one way at K band)
+TRUNK_RADIUS_M = 0.25
 
 # Car body: (x forward, y left, z) scatterers and RCS (bumpers, wheels, roof edge, sides).
 _CAR_BODY = np.array([[2.2, 0.0, 0.5], [-2.2, 0.0, 0.6], [1.4, 0.85, 0.4], [1.4, -0.85, 0.4],
@@ -110,7 +124,30 @@ class World:
     phase_rad: np.ndarray
     segments: np.ndarray
     movers: list[Mover] = field(default_factory=list)
+    area_m2: np.ndarray | None = None  # > 0: a distributed-clutter tile of that area
+    tile_x_m: np.ndarray | None = None  # the tile's centre (== x_m, y_m for discrete points)
+    tile_y_m: np.ndarray | None = None
+    discs: np.ndarray | None = None  # (D, 6) shadowing discs: x, y, r, z0, z1, transmission
     _tree: cKDTree | None = field(default=None, repr=False)
+    _disc_tree: cKDTree | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.x_m)
+        if self.area_m2 is None:
+            self.area_m2 = np.zeros(n)
+        if self.tile_x_m is None:
+            self.tile_x_m, self.tile_y_m = np.asarray(self.x_m, float), np.asarray(self.y_m, float)
+        if self.discs is None:
+            self.discs = np.zeros((0, 6))
+
+    def discs_near(self, center_xy_m, radius_m: float) -> np.ndarray:
+        """Shadowing discs whose centre is within ``radius_m`` of ``center_xy_m``."""
+        if len(self.discs) == 0:
+            return self.discs
+        if self._disc_tree is None:
+            self._disc_tree = cKDTree(self.discs[:, :2])
+        idx = self._disc_tree.query_ball_point(np.asarray(center_xy_m, float), radius_m)
+        return self.discs[np.sort(np.asarray(idx, dtype=np.intp))]
 
     @property
     def xy_m(self) -> np.ndarray:
@@ -170,6 +207,52 @@ class World:
         return out.reshape(shape)
 
 
+def car_discs(x_m, y_m, heading_rad) -> np.ndarray:
+    """Shadowing discs (K, 6) of cars at (x, y, heading) (arrays of the same shape)."""
+    x_m, y_m, h = (np.atleast_1d(np.asarray(a, float)) for a in (x_m, y_m, heading_rad))
+    out = []
+    for fwd, r in _CAR_DISCS:
+        out.append(np.column_stack([x_m + fwd * np.cos(h), y_m + fwd * np.sin(h), np.full(len(h), r),
+                                    np.zeros(len(h)), np.full(len(h), CAR_HEIGHT_M), np.zeros(len(h))]))
+    return np.concatenate(out) if out else np.zeros((0, 6))
+
+
+def disc_transmission(radar_xy_m, radar_z_m: float, x_m, y_m, z_m, discs: np.ndarray,
+                      eps_m: float = 0.05, chunk: int = 8192) -> np.ndarray:
+    """Two-way power transmission of the line of sight radar -> scatterer through ``discs``.
+
+    A disc (x, y, r, z0, z1, T) shadows a scatterer when the ray passes within r of its
+    centre at a height between z0 and z1, the centre's projection lying between the radar
+    and the scatterer (so a car's or a crown's far side is shadowed by its own body, its
+    near side is not); shadows multiply. ``radar_xy_m`` (..., 2) broadcasts against the
+    scatterer arrays.
+    """
+    x_m, y_m = np.asarray(x_m, float), np.asarray(y_m, float)
+    px = np.asarray(radar_xy_m, float)[..., 0]
+    py = np.asarray(radar_xy_m, float)[..., 1]
+    shape = np.broadcast_shapes(px.shape, x_m.shape)
+    out = np.ones(int(np.prod(shape)))
+    if len(discs) == 0:
+        return out.reshape(shape)
+    px, py = np.broadcast_to(px, shape).ravel(), np.broadcast_to(py, shape).ravel()
+    qx, qy = np.broadcast_to(x_m, shape).ravel(), np.broadcast_to(y_m, shape).ravel()
+    qz = np.broadcast_to(np.asarray(z_m, float), shape).ravel()
+    cx, cy, r, z0, z1, tr = (discs[:, i] for i in range(6))
+    for i in range(0, len(px), chunk):
+        sl = slice(i, i + chunk)
+        rx, ry = (qx[sl] - px[sl])[:, None], (qy[sl] - py[sl])[:, None]
+        l2 = np.maximum(rx * rx + ry * ry, 1e-12)
+        ax, ay = cx - px[sl, None], cy - py[sl, None]
+        t = (ax * rx + ay * ry) / l2
+        ex, ey = ax - t * rx, ay - t * ry
+        z_ray = radar_z_m + t * (qz[sl, None] - radar_z_m)
+        hit = ((t > 0.0) & (t < 1.0 - eps_m / np.sqrt(l2)) & (ex * ex + ey * ey < r * r)
+               & (z_ray >= z0) & (z_ray <= z1))
+        if hit.any():
+            out[sl] = np.where(hit, tr, 1.0).prod(axis=1)
+    return out.reshape(shape)
+
+
 class WorldBuilder:
     """Accumulates scatterers, occluders and movers drawn from one seeded generator."""
 
@@ -178,15 +261,33 @@ class WorldBuilder:
         self._parts: list[tuple[np.ndarray, ...]] = []
         self._segments: list[np.ndarray] = []
         self._exclusions: list = []  # (kind, params): areas where no clutter grows
+        self._discs: list[np.ndarray] = []  # shadowing discs (x, y, r, z0, z1, transmission)
         self.movers: list[Mover] = []
 
     # --- primitives -------------------------------------------------------------------
-    def points(self, xy, z, rcs, kind: str) -> None:
+    def points(self, xy, z, rcs, kind: str, area_m2: float = 0.0, tile_xy=None) -> None:
+        """Point scatterers; ``area_m2`` > 0 marks clutter tiles centred at ``tile_xy``."""
         xy = np.asarray(xy, float).reshape(-1, 2)
         n = len(xy)
+        tile = xy if tile_xy is None else np.asarray(tile_xy, float).reshape(-1, 2)
         self._parts.append((xy[:, 0], xy[:, 1], np.broadcast_to(z, (n,)).astype(float),
                             np.broadcast_to(rcs, (n,)).astype(float),
-                            np.full(n, KIND[kind], np.uint8), self.rng.uniform(0, 2 * np.pi, n)))
+                            np.full(n, KIND[kind], np.uint8), self.rng.uniform(0, 2 * np.pi, n),
+                            np.full(n, float(area_m2)), tile[:, 0], tile[:, 1]))
+
+    def disc(self, x_m: float, y_m: float, r_m: float, z0_m: float, z1_m: float,
+             transmission: float = 0.0) -> None:
+        """A shadowing disc (two-way power ``transmission``, 0 = opaque); see :func:`disc_transmission`."""
+        self._discs.append(np.array([[x_m, y_m, r_m, z0_m, z1_m, transmission]], float))
+
+    def _tiles(self, lo, hi, density_pm2: float):
+        """Stratified clutter: one uniform point per square tile of area 1 / density (tile
+        centres, jittered points) over the box lo..hi."""
+        side = 1.0 / math.sqrt(density_pm2)
+        gx = np.arange(lo[0], hi[0], side) + 0.5 * side
+        gy = np.arange(lo[1], hi[1], side) + 0.5 * side
+        centre = np.stack(np.meshgrid(gx, gy, indexing="ij"), -1).reshape(-1, 2)
+        return centre + self.rng.uniform(-0.5 * side, 0.5 * side, centre.shape), centre
 
     def _texture(self, n: int, spread: float = 0.6) -> np.ndarray:
         """Log-normal RCS texture of mean 1."""
@@ -194,13 +295,20 @@ class WorldBuilder:
 
     def clutter(self, rect, density_pm2: float, sigma0_db: float, kind: str = "grass",
                 z_m=0.0) -> None:
-        """Distributed clutter over the rectangle (x0, y0, x1, y1), outside exclusions."""
+        """Distributed clutter over the rectangle (x0, y0, x1, y1), outside exclusions.
+
+        One point per tile of area 1 / density (stratified); ``rcs_m2`` holds the tile's mean
+        RCS sigma0 / density, which the simulator turns into an exponential RCS with a
+        uniform phase (a complex Gaussian amplitude), or splits near the radar, so the sum
+        in a resolution cell is Rayleigh (developed speckle, :mod:`.clutter`). ``sigma0_db``
+        is sigma0 at the reference grazing angle ``RadarParams.grazing_ref_deg``.
+        """
         x0, y0, x1, y1 = rect
-        n = self.rng.poisson(density_pm2 * (x1 - x0) * (y1 - y0))
-        xy = np.column_stack([self.rng.uniform(x0, x1, n), self.rng.uniform(y0, y1, n)])
-        xy = xy[~self.excluded(xy)]
-        rcs = _db(sigma0_db) / density_pm2 * self._texture(len(xy))
-        self.points(xy, z_m, rcs, kind)
+        xy, centre = self._tiles((x0, y0), (x1, y1), density_pm2)
+        keep = ~self.excluded(xy)
+        xy, centre = xy[keep], centre[keep]
+        rcs = np.full(len(xy), _db(sigma0_db) / density_pm2)  # the tile's mean RCS
+        self.points(xy, z_m, rcs, kind, 1.0 / density_pm2, centre)
 
     def excluded(self, xy: np.ndarray) -> np.ndarray:
         out = np.zeros(len(xy), bool)
@@ -224,11 +332,11 @@ class WorldBuilder:
              density_pm2: float = 0.3) -> None:
         """Asphalt (low return) along a polyline; no grass grows on it afterwards."""
         pl = np.asarray(polyline, float)
-        lo, hi = pl.min(0) - width_m, pl.max(0) + width_m
-        n = self.rng.poisson(density_pm2 * np.prod(hi - lo))
-        xy = self.rng.uniform(lo, hi, (n, 2))
-        xy = xy[_distance_to_polyline(xy, pl) <= width_m / 2]
-        self.points(xy, 0.0, _db(sigma0_db) / density_pm2 * self._texture(len(xy)), "road")
+        xy, centre = self._tiles(pl.min(0) - width_m, pl.max(0) + width_m, density_pm2)
+        keep = _distance_to_polyline(xy, pl) <= width_m / 2
+        xy, centre = xy[keep], centre[keep]
+        self.points(xy, 0.0, np.full(len(xy), _db(sigma0_db) / density_pm2), "road",
+                    1.0 / density_pm2, centre)
         self._exclusions.append(("corridor", (pl, width_m / 2 + 0.5)))
 
     def wall(self, p0, p1, rcs_per_m: float = 2.0, spacing_m: float = 0.25, z_m: float = 1.5,
@@ -268,8 +376,11 @@ class WorldBuilder:
                     self.rng.uniform(0.3, 1.8, n), rcs, "bush")
 
     def tree(self, x_m: float, y_m: float, crown_m: float = 3.0) -> None:
-        """A trunk (strong point) and a crown cluster between 2 and 6 m high."""
-        self.points([x_m, y_m], 1.0, self.rng.uniform(0.5, 2.0), "tree")
+        """A trunk (strong point, opaque disc) and a crown cluster between 2 and 6 m high
+        (a disc of foliage, ``CROWN_LOSS_DB`` two-way)."""
+        self.points([x_m, y_m], 1.0, self.rng.uniform(0.5, 2.0), "trunk")
+        self.disc(x_m, y_m, TRUNK_RADIUS_M, 0.0, 2.0, 0.0)
+        self.disc(x_m, y_m, crown_m, 2.0, 6.0, 10.0 ** (-CROWN_LOSS_DB / 10.0))
         n = max(8, int(3.0 * math.pi * crown_m**2))
         r = crown_m * np.sqrt(self.rng.uniform(0, 1, n))
         a = self.rng.uniform(0, 2 * np.pi, n)
@@ -283,6 +394,7 @@ class WorldBuilder:
         b = _CAR_BODY
         xy = np.column_stack([x_m + c * b[:, 0] - s * b[:, 1], y_m + s * b[:, 0] + c * b[:, 1]])
         self.points(xy, b[:, 2], _CAR_RCS_M2 * self._texture(len(b), 0.5), "car")
+        self._discs.append(car_discs(x_m, y_m, heading_rad))
 
     def sign(self, x_m: float, y_m: float) -> None:
         """A road sign: a metal plate on a pole (strong, a few m^2 to 20 m^2)."""
@@ -298,10 +410,11 @@ class WorldBuilder:
 
     def build(self) -> World:
         cols = [np.concatenate([p[i] for p in self._parts]) if self._parts else np.zeros(0)
-                for i in range(6)]
+                for i in range(9)]
         seg = np.array(self._segments, float).reshape(-1, 4)
+        discs = np.concatenate(self._discs) if self._discs else np.zeros((0, 6))
         return World(cols[0], cols[1], cols[2], cols[3], cols[4].astype(np.uint8), cols[5],
-                     seg, list(self.movers))
+                     seg, list(self.movers), cols[6], cols[7], cols[8], discs)
 
 
 def _distance_to_polyline(xy: np.ndarray, polyline: np.ndarray, chunk: int = 20000):
