@@ -10,13 +10,29 @@ with a ``soft_l1``/``huber`` loss), no RANSAC needed. Then the robust residual s
 and an ordinary least-squares fit on the inliers gives V0, theta0 and the covariance.
 
 Elevation (RADAR.md item 3): the radar is ``radar_height_m`` above the ground and sees a
-scatterer ``target_height_m`` high at slant range R, i.e. at the depression angle
-el = asin((h - z) / R); its radial speed is V0 cos(theta - theta0) cos(el), and
-cos(el) = ground range / slant range. Ground clutter (z = 0), which carries most of the
-Doppler of a ground vehicle's radar at short range, would otherwise bias V0 low: by 3 %
-from detections at 3-10 m with the IMPALA 1.3 m high (4.86 m/s for 5.00). The factor is
-applied to each detection's basis (the fit stays linear); detections nearer than h - z
-(no such geometry) are left out.
+scatterer z high at slant range R, i.e. at the depression angle el = asin((h - z) / R); its
+radial speed is V0 cos(theta - theta0) cos(el), and cos(el) = ground range / slant range (the
+simulator's geometry: radial speed = horizontal velocity . horizontal offset / slant range).
+Ground clutter (z = 0) carries the factor in full: ignoring it biases V0 low at short range
+(4.86 m/s for 5.00 from detections at 3-10 m, IMPALA 1.3 m high). Raised scatterers (posts,
+trunks, walls, car bodies near the radar's height) carry a factor of about 1: applying the
+ground factor to them biases V0 high just as much (+0.11 m/s at 3-10 m). A detection does not
+say which it is, so the fit is a mixture (``target_heights_m``, by default the ground and the
+radar's own height): each detection is on one of the heights, unknown, with the factor f_k of
+that height, and V0, theta0, the residual sigma and the share of each height are the maximum
+likelihood of
+
+    v_i ~ sum_k pi_k N(f_ik (a cos theta_i + b sin theta_i), sigma^2)
+
+by expectation-maximisation (every M-step is a weighted linear least squares, vectorised).
+The latent heights are marginalised, not chosen per detection, so the estimate is
+consistent (choosing the closer height per detection would bias V0 where the heights differ
+by about the noise). Far away the factors all tend to 1 and the choice does not matter; near
+the radar (|f_ground - 1| >> sigma) each detection is classified without doubt. Heights in
+between (bushes, kerbs) fall between the two and bias V0 by at most their share times half
+the factors' gap. A single height gives the plain linear fit; detections nearer than h - z
+for some height (no such geometry) are left out. The reported covariance is that of the
+final weighted least squares (sigma^2 (A^T W A)^-1).
 """
 
 from __future__ import annotations
@@ -58,46 +74,68 @@ def elevation_factor(range_m, height_above_target_m: float) -> np.ndarray:
 
 
 def fit_ego_velocity(azimuth_rad, radial_mps, *, range_m=None, radar_height_m: float = 0.0,
-                     target_height_m: float = 0.0, loss: str = "soft_l1", f_scale_mps: float = 0.25,
+                     target_heights_m=(0.0,), loss: str = "soft_l1", f_scale_mps: float = 0.25,
                      outlier_sigma: float = 3.0, min_gate_mps: float = 0.3,
-                     fit_offset: bool = True) -> EgoFit | None:
-    """Robust fit of V(theta) = V0 cos(theta - theta0) cos(el) to the detections (cos(el)
-    from ``range_m`` and the heights, see the module doc; 1 without ``range_m``); None if
-    fewer than 3 usable detections."""
+                     fit_offset: bool = True, max_iterations: int = 50) -> EgoFit | None:
+    """Robust fit of V(theta) = V0 cos(theta - theta0) cos(el) to the detections: cos(el) from
+    ``range_m`` and each height of ``target_heights_m`` (a mixture when there are several, see
+    the module doc; 1 without ``range_m``); None if fewer than 3 usable detections."""
     az = np.asarray(azimuth_rad, float)
     v = np.asarray(radial_mps, float)
+    heights = np.atleast_1d(np.asarray(target_heights_m, float))
     if range_m is None:
-        cos_el = np.ones_like(az)
+        fac = np.ones((len(az), 1))
     else:
-        cos_el = elevation_factor(range_m, radar_height_m - target_height_m)
-    ok = np.isfinite(az) & np.isfinite(v) & np.isfinite(cos_el)
+        fac = np.column_stack([elevation_factor(range_m, radar_height_m - z) for z in heights])
+    ok = np.isfinite(az) & np.isfinite(v) & np.all(np.isfinite(fac), axis=1)
     if ok.sum() < 3:
         return None
-    cos_el = np.where(ok, cos_el, 0.0)
-    basis = np.column_stack([np.cos(az), np.sin(az)]) if fit_offset else np.cos(az)[:, None]
-    basis = basis * cos_el[:, None]
+    fac = np.where(ok[:, None], fac, 0.0)
+    trig = np.column_stack([np.cos(az), np.sin(az)]) if fit_offset else np.cos(az)[:, None]
+    q = trig.shape[1]
+    basis = trig * fac.mean(axis=1)[:, None]  # robust start: the mean factor of the heights
 
     def resid(p: np.ndarray) -> np.ndarray:
         return basis[ok] @ p - v[ok]
 
     p0 = np.linalg.lstsq(basis[ok], v[ok], rcond=None)[0]
     p = least_squares(resid, p0, loss=loss, f_scale=f_scale_mps).x
-    r = basis @ p - v
+    res = fac * (trig @ p)[:, None] - v[:, None]  # (n, K): residual under each height
+    r = res[np.arange(len(v)), np.argmin(np.abs(res), axis=1)]
     scale = 1.4826 * np.median(np.abs(r[ok] - np.median(r[ok])))
     inlier = ok & (np.abs(r) <= max(outlier_sigma * scale, min_gate_mps))
-    if inlier.sum() >= basis.shape[1] + 1:
-        a_in = basis[inlier]
-        p, *_ = np.linalg.lstsq(a_in, v[inlier], rcond=None)
-        r_in = a_in @ p - v[inlier]
-        sigma2 = float(r_in @ r_in) / max(1, len(r_in) - basis.shape[1])
-        cov = sigma2 * np.linalg.inv(a_in.T @ a_in)
+    n_in = int(inlier.sum())
+    if n_in < q + 1:
+        cov, sigma2 = np.full((q, q), np.nan), float("nan")
     else:
-        sigma2, cov = float("nan"), np.full((basis.shape[1],) * 2, np.nan)
+        t_in, f_in, v_in = trig[inlier], fac[inlier], v[inlier]
+        k = f_in.shape[1]
+        w = np.full((n_in, k), 1.0 / k)
+        share = np.full(k, 1.0 / k)
+        sigma2 = max(float(np.mean(r[inlier] ** 2)), 1e-12)
+        for _ in range(max_iterations if k > 1 else 1):
+            if k > 1:  # E-step: posterior of each height per detection
+                m = t_in @ p
+                logw = np.log(np.maximum(share, 1e-300)) - (v_in[:, None] - f_in * m[:, None]) ** 2 / (2.0 * sigma2)
+                w = np.exp(logw - logw.max(axis=1, keepdims=True))
+                w /= w.sum(axis=1, keepdims=True)
+                share = w.mean(axis=0)
+            s_w, t_w = (w * f_in * f_in).sum(axis=1), (w * f_in).sum(axis=1)  # M-step: weighted LS
+            a_mat = t_in.T @ (t_in * s_w[:, None])
+            p_new = np.linalg.solve(a_mat, t_in.T @ (t_w * v_in))
+            res_in = v_in[:, None] - f_in * (t_in @ p_new)[:, None]
+            sigma2 = max(float(np.sum(w * res_in**2)) / n_in, 1e-12)
+            done = np.max(np.abs(p_new - p)) < 1e-7
+            p = p_new
+            if done:
+                break
+        sigma2 *= n_in / max(1, n_in - q)  # unbiased residual variance
+        cov = sigma2 * np.linalg.inv(a_mat)
     a = float(p[0])
     b = float(p[1]) if fit_offset else 0.0
     theta0 = float(np.arctan(b / a)) if a != 0.0 else 0.0
     v0 = a / np.cos(theta0)
-    g = np.array([np.cos(theta0), np.sin(theta0)])[: basis.shape[1]]
+    g = np.array([np.cos(theta0), np.sin(theta0)])[:q]
     return EgoFit(float(v0), theta0, float(np.sqrt(max(g @ cov @ g, 0.0))), float(np.sqrt(sigma2)), inlier)
 
 
@@ -127,8 +165,10 @@ class EgoVelocity(Component):
     fit_offset = Param(bool, default=True, doc="fit theta0 (mounting / side-slip angle) too")
     radar_height_m = Param(float, default=1.3, ge=0,
                            doc="radar above the ground (IMPALA 1.3 m, K2Pi 3 m): the depression angle of the echoes")
-    target_height_m = Param(float, default=0.0, ge=0,
-                            doc="height assumed for the scatterers (0: ground clutter, which dominates)")
+    scatterers = Param(str, default="both", choices=("both", "ground", "raised"),
+                       doc="heights of the static scatterers: 'ground' (z = 0, clutter: factor ground / slant "
+                           "range), 'raised' (at the radar's height: factor 1), 'both' (a mixture of the two, "
+                           "fitted by EM; see the module doc)")
     std_floor_mps = Param(float, default=0.005, ge=0,
                           doc="added in quadrature to the formal std (peak-interpolation bias: -3 mm/s measured)")
 
@@ -143,7 +183,7 @@ class EgoVelocity(Component):
             self.skipped += 1
             return
         fit = fit_ego_velocity(d.azimuth_rad, d.radial_speed_mps, range_m=d.range_m,
-                               radar_height_m=self.radar_height_m, target_height_m=self.target_height_m, loss=self.loss,
+                               radar_height_m=self.radar_height_m, target_heights_m=self._heights_m(), loss=self.loss,
                                f_scale_mps=self.f_scale_mps, outlier_sigma=self.outlier_sigma,
                                min_gate_mps=self.min_gate_mps, fit_offset=self.fit_offset)
         if fit is None:
@@ -153,6 +193,10 @@ class EgoVelocity(Component):
         self.estimates += 1
         self.speed.emit(t, Speed(fit.speed_mps, float(np.hypot(fit.v0_std_mps, self.std_floor_mps))))
         self.movers.emit(t, subset(d, ~fit.inlier & np.isfinite(d.radial_speed_mps)))
+
+    def _heights_m(self) -> tuple[float, ...]:
+        return {"ground": (0.0,), "raised": (self.radar_height_m,),
+                "both": (0.0, self.radar_height_m)}[self.scatterers]
 
     def summary(self) -> dict:
         return {"estimates": self.estimates, "skipped": self.skipped}
