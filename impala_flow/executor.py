@@ -48,7 +48,7 @@ import heapq
 import itertools
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import networkx as nx
@@ -57,13 +57,13 @@ from .clock import ReplayClock
 from .component import Component, Source
 from .network import Network
 from .ports import InputPort, OutputTypeError
-from .sample import Sample
 from .summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters", "event_order",
            "check_source_time"]
 
 _SRC, _DELIVER, _TIMER, _TRIG = 0, 1, 2, 3
+_BEFORE_ALL = -(1 << 63) - 1  # earlier than any int64 sample time
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 ProgressFn = Callable[[int, int | None], None]
@@ -110,57 +110,64 @@ class OfflineExecutor:
         seq = itertools.count()
         push, pop = heapq.heappush, heapq.heappop
         summary = self.summary
-        counts = {c.name: 0 for c in order}
+        counts = {c: 0 for c in order}  # by component: no .name lookup per call
         skipped = {c.name: 0 for c in order}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
-        live_events = 0  # events other than timers still scheduled
         # second key: 2 * rank + phase (0: an input receives, 1: a component fires)
         for c in order:
             for inp in c.inputs.values():
                 inp.rank = 2 * rank[c.name]
         delayed_shift = 2 * n
 
-        def deliver(inp: InputPort, s: Sample, delayed: bool) -> None:
-            nonlocal live_events
-            push(heap, (s.timestamp, inp.rank + delayed_shift if delayed else inp.rank, next(seq), _DELIVER, inp, s))
-            live_events += 1
-
-        for c in order:
-            for out in c.outputs.values():
-                out._deliver = deliver
+        # emit() queues (t, key, seq, _DELIVER, input, sample) itself (ports.OutputPort)
+        next_seq = seq.__next__
+        outputs = [out for c in order for out in c.outputs.values()]
+        for out in outputs:
+            out._heap, out._next = heap, next_seq
+            out._keyed = tuple((inp, inp.rank + delayed_shift if delayed else inp.rank)
+                               for inp, delayed in out._targets)
+        # every timer has exactly one event in the heap (re-queued when it fires): the events
+        # other than timers are len(heap) - timers, and when a timer is popped the others
+        # are len(heap) - (timers - 1)
+        n_timers = sum(len(c.__timers__) for c in order)
+        inputs = [inp for c in order for inp in c.inputs.values()]
+        for inp in inputs:
+            inp._fast = (inp.group is None and inp.policy == "reactive" and inp._history_ns is None
+                         and inp._cond is None)
 
         # a source's clock offset (its clock vs the mission clock) is applied on the way in
         offsets = {c.name: int(getattr(c, "clock_offset_ns", 0) or 0) for c in order}
         started: list[Component] = []
         start_failed: set[str] = set()
-        gens: dict[str, Iterator[tuple[int, str, Any]]] = {}
-        last_src_t: dict[str, int] = {}
         wall0 = time.perf_counter()
         error: ComponentError | None = None
-        cur_t: int | None = None
+        cur_t: int | None = None  # the time of the last event (None before the first)
+        now_t = _BEFORE_ALL  # the same, as an int for the hot loop
         events = 0
 
+        # per source: [generator, clock offset, event key, last time yielded]
+        src_state: dict[Source, list] = {}
+
         def pull(src: Source) -> None:
-            nonlocal live_events
+            st = src_state[src]
             try:
-                item = next(gens[src.name], None)
+                item = next(st[0], None)
             except Exception as e:
-                raise ComponentError(src.name, "generate", last_src_t.get(src.name), "generate", e) from e
+                raise ComponentError(src.name, "generate", st[3], "generate", e) from e
             if item is None:
                 return
             t, port, data = item
             if type(t) is not int:
                 t = int(t)
-            t += offsets[src.name]
+            t += st[1]
             if not _INT64_MIN <= t <= _INT64_MAX:
                 check_source_time(src.name, port, t)
-            prev = last_src_t.get(src.name)
+            prev = st[3]
             if prev is not None and t < prev:
                 raise ComponentError(src.name, port, t, "generate", ValueError(
                     f"source yielded t={t} ns after t={prev} ns: samples must come in time order"))
-            last_src_t[src.name] = t
-            push(heap, (t, 2 * rank[src.name] + 1, next(seq), _SRC, src, (port, data)))
-            live_events += 1
+            st[3] = t
+            push(heap, (t, st[2], next_seq(), _SRC, src, (port, data)))
 
         def failed(comp: Component, trig: str, t: int, e: Exception) -> None:
             """A ``process`` call raised: count and log it (``on_error: skip``) or stop the run."""
@@ -184,7 +191,7 @@ class OfflineExecutor:
                     raise ComponentError(c.name, "", None, "start", e) from e
             for c in order:
                 if isinstance(c, Source):
-                    gens[c.name] = iter(c.generate())
+                    src_state[c] = [iter(c.generate()), offsets[c.name], 2 * rank[c.name] + 1, None]
                     pull(c)
             if heap:
                 t0 = heap[0][0]
@@ -195,23 +202,23 @@ class OfflineExecutor:
                         push(heap, (first, 2 * rank[c.name] + 1, next(seq), _TIMER, c, (tname, p)))
             next_check = 256
             last_progress = wall0
+            clock = self.clock  # an unpaced replay clock never waits: no call per timestamp
+            wait_until = None if type(clock) is ReplayClock and clock.speed is None else clock.wait_until
 
             def drain() -> None:
-                nonlocal cur_t, live_events, events, next_check, last_progress
+                nonlocal cur_t, now_t, events, next_check, last_progress
                 while heap:
                     ev = pop(heap)
                     t, k, _, kind, a, b = ev
-                    if kind == _TIMER:
-                        if live_events == 0 and (cur_t is None or t > cur_t):
-                            push(heap, (t, k, next(seq), kind, a, b))  # kept for a flush that emits
+                    if t > now_t:
+                        if kind == _TIMER and len(heap) == n_timers - 1:
+                            push(heap, (t, k, next_seq(), kind, a, b))  # kept for a flush that emits
                             return  # only timers left, past the last sample: the mission is over
-                    else:
-                        live_events -= 1
-                    if cur_t is None or t > cur_t:
                         if cur_t is None:
                             summary.mission_start_ns = t
-                        cur_t = t
-                        self.clock.wait_until(t)
+                        cur_t = now_t = t
+                        if wait_until is not None:
+                            wait_until(t)
                     if kind != _TRIG:
                         events += 1
                         if events >= next_check:
@@ -219,20 +226,26 @@ class OfflineExecutor:
                             if self.stop_event.is_set():
                                 summary.interrupted = True
                                 push(heap, ev)  # not processed: still in flight, counted as such
-                                live_events += kind != _TIMER
                                 return
                             now = time.perf_counter()
                             if self.progress is not None and now - last_progress >= self.progress_interval_s:
                                 last_progress = now
                                 self.progress(cur_t, summary.mission_start_ns)
                     if kind == _DELIVER:
-                        if not a.push(b):
+                        fifo = a._fifo
+                        if a._fast and len(fifo) < a.maxsize:  # InputPort.push, inlined
+                            st = a.stats
+                            st.received += 1
+                            a._last = b
+                            fifo.append(b)
+                            if len(fifo) > st.high_water:
+                                st.high_water = len(fifo)
+                        elif not a.push(b):
                             continue
                         if heap and heap[0][0] == t and heap[0][1] <= k + 1:
                             # more arrivals for this component at this time, or triggers already
                             # waiting: fire after them, in arrival order (the equal-timestamp rule)
-                            push(heap, (t, k + 1, next(seq), _TRIG, a, None))
-                            live_events += 1
+                            push(heap, (t, k + 1, next_seq(), _TRIG, a, None))
                             continue
                     elif kind == _TRIG:  # a deferred trigger of input a
                         if a.group is None and a.policy == "reactive" and not a._fifo:
@@ -259,7 +272,7 @@ class OfflineExecutor:
                         except Exception as e:
                             failed(a, trig, t, e)
                         else:
-                            counts[a.name] += 1
+                            counts[a] += 1
                         continue
                     # input a fires its component (a reactive input, or a completed sync group)
                     comp = a.owner
@@ -278,10 +291,9 @@ class OfflineExecutor:
                     except Exception as e:
                         failed(comp, trig, t, e)
                     else:
-                        counts[comp.name] += 1
+                        counts[comp] += 1
                     if group is not None and group.match():  # samples that arrived while it was pending
                         push(heap, (ev[0], k | 1, next(seq), _TRIG, a, None))
-                        live_events += 1
 
             drain()
             if not summary.interrupted:  # end of the inputs: components may emit what they hold
@@ -306,9 +318,13 @@ class OfflineExecutor:
                 if ev[3] == _DELIVER:
                     in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
             heap.clear()
+            for out in outputs:  # the ports may outlive this run (and be run again)
+                out._heap, out._next, out._keyed = None, None, ()
+            for inp in inputs:
+                inp._fast = False
             later = stop_components(started)
             summary.wall_s = time.perf_counter() - wall0
-            summary.processed = counts
+            summary.processed = {c.name: n for c, n in counts.items()}
             summary.skipped = {k: v for k, v in skipped.items() if v}
             later += collect_counters(summary, order, in_flight,
                                       reporting=[c for c in started if c.name not in start_failed])

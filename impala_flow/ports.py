@@ -44,11 +44,13 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from heapq import heappush as _heappush
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .msgs import freeze
+from .msgs._base import _freezers, _noop
 from .msgs.geometry import wrap_angle
 from .sample import Sample
 
@@ -115,7 +117,7 @@ class InputPort:
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected", "rank", "sources",
+        "trigger_name", "connected", "rank", "sources", "_fast",
     )
 
     def __init__(self, owner: Component, name: str, decl: Input) -> None:
@@ -139,6 +141,9 @@ class InputPort:
         self.connected = False
         self.sources: list[OutputPort] = []  # the outputs feeding this input
         self.rank = 0  # event key of the owner (2 x its graph rank), set by the offline executor
+        # set by the offline executor for its run: a reactive input outside any sync group,
+        # without history, on one thread: push() and take() skip every other case
+        self._fast = False
 
     # --- producer side ------------------------------------------------------------
     def push(self, s: Sample) -> bool:
@@ -150,6 +155,13 @@ class InputPort:
         st = self.stats
         st.received += 1
         self._last = s
+        if self._fast:
+            fifo = self._fifo
+            if len(fifo) < self.maxsize:
+                fifo.append(s)
+                if len(fifo) > st.high_water:
+                    st.high_water = len(fifo)
+                return True
         if self._history_ns is not None:
             self._remember(s)
         if self.policy == "sampling" and self.group is None:
@@ -226,6 +238,11 @@ class InputPort:
 
     def take(self) -> Any:
         """The data of :meth:`take_sample`."""
+        if self._fast:
+            try:
+                return self._fifo.popleft().data
+            except IndexError:
+                raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
         return self.take_sample().data
 
     def get(self, default: Any = None) -> Any:
@@ -332,21 +349,29 @@ class SyncGroup:
 class OutputPort:
     """One output of one component instance; ``emit`` stamps, freezes and fans out."""
 
-    __slots__ = ("name", "owner", "decl", "origin", "count", "_seq", "_targets", "_deliver", "_typed", "_ok")
+    __slots__ = ("name", "owner", "decl", "origin", "_seq", "_targets", "_deliver", "_typed", "_ok",
+                 "_heap", "_next", "_keyed", "_cls", "_frz")
 
     def __init__(self, owner: Component, name: str, decl: Output) -> None:
         self.name = name
         self.owner = owner
         self.decl = decl
         self.origin = f"{owner.name}.{name}"
-        self.count = 0
         t = decl.type
         self._typed = isinstance(t, type) and t is not object  # typing constructs: not checked
         self._ok: set[type] = set()  # classes already accepted on this port
+        # the class of the last value emitted (accepted) and its freezer (None: immutable)
+        self._cls: type | None = None
+        self._frz: Callable[[Any], None] | None = None
         self._seq = 0
         self._targets: list[tuple[InputPort, bool]] = []  # (input, delayed)
-        # set by the executor: deliver(input, sample, delayed)
+        # set by the real-time executor: deliver(input, sample, delayed)
         self._deliver: Callable[[InputPort, Sample, bool], None] | None = None
+        # set by the offline executor for a run: its event heap, its sequence counter and
+        # (input, event key) per target, so emit() queues deliveries without a call per target
+        self._heap: list | None = None
+        self._next: Callable[[], int] | None = None
+        self._keyed: tuple[tuple[InputPort, int], ...] = ()
 
     def _check_type(self, t_ns: int, data: Any) -> None:
         """Accept ``type(data)`` for good (cached) or raise :class:`OutputTypeError`."""
@@ -365,6 +390,11 @@ class OutputPort:
             f"{getattr(want, '__name__', want)} but emitted {cls.__name__} {shown} at t={t_ns} ns"
         )
 
+    @property
+    def count(self) -> int:
+        """Samples emitted so far (the next sample's ``seq``)."""
+        return self._seq
+
     def connected_inputs(self) -> list[InputPort]:
         """The inputs this output feeds (in connection order)."""
         return [inp for inp, _ in self._targets]
@@ -377,11 +407,23 @@ class OutputPort:
                     f"{self.origin}: timestamps are int nanoseconds, got {type(t_ns).__name__} {t_ns!r}"
                 )
             t_ns = int(t_ns)
-        if self._typed and type(data) not in self._ok:
-            self._check_type(t_ns, data)
-        s = Sample(t_ns, freeze(data), self._seq, self.origin)
+        cls = type(data)
+        if cls is not self._cls:  # a class not seen last time: check it, find its freezer
+            if self._typed and cls not in self._ok:
+                self._check_type(t_ns, data)
+            freeze(data)
+            f = _freezers[cls]
+            self._cls, self._frz = cls, None if f is _noop else f
+        elif self._frz is not None:
+            self._frz(data)
+        s = Sample(t_ns, data, self._seq, self.origin)
         self._seq += 1
-        self.count += 1
+        heap = self._heap
+        if heap is not None:  # offline executor: event (t, key, seq, DELIVER, input, sample)
+            nxt = self._next
+            for inp, key in self._keyed:
+                _heappush(heap, (t_ns, key, nxt(), 1, inp, s))
+            return s
         deliver = self._deliver
         if deliver is not None:
             for inp, delayed in self._targets:
