@@ -55,6 +55,7 @@ TAIL_SIZE = _FOOTER.size + len(MAGIC)
 _DATA_END_SIZE = _REC.size + 4
 _MAX_CHUNK = 1 << 32  # uncompressed bytes, the bound of the mcap library's own reader
 _LOOSE_RUN = 1 << 20  # bytes of messages outside chunks grouped in one run
+_WINDOW = 1 << 20  # bytes read at once by the forward scan
 _KNOWN = frozenset(int(op) for op in Opcode)
 _NAMES = {int(op): op.name.title().replace("_", "") for op in Opcode}
 _DECODE_ERRORS = (McapError, struct.error, UnicodeDecodeError, ValueError, EOFError)
@@ -291,12 +292,18 @@ def scan(path: str, f: BinaryIO, size: int, truncated: bool) -> FileMap:
     saw_end = False
     last: ChunkRef | None = None
     run: list[int] = []  # [offset, end, t_min, t_max, channel ids...] of the current loose run
+    # record heads and message headers are read through a window of the file (an unchunked
+    # file is one small record per message: a read call each would dominate the scan)
+    win, win_at = b"", 0
+    unpack_rec, unpack_msg = _REC.unpack_from, _MSG.unpack_from
     while True:
-        f.seek(pos)
-        head = f.read(_REC.size)
-        if len(head) < _REC.size:
+        off = pos - win_at
+        if off < 0 or off + _REC.size + _MSG.size > len(win):
+            f.seek(pos)
+            win, win_at, off = f.read(_WINDOW), pos, 0
+        if len(win) - off < _REC.size:
             break
-        op, length = _REC.unpack(head)
+        op, length = unpack_rec(win, off)
         body_at = pos + _REC.size
         if op == 0 or length > size:  # impossible even for a longer (uncut) file
             nxt = _resync(path, f, pos + 1, size)
@@ -323,13 +330,14 @@ def scan(path: str, f: BinaryIO, size: int, truncated: bool) -> FileMap:
                 f.seek(body_at)
                 last.index[_U16.unpack(f.read(2))[0]] = pos
         elif op in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA, Opcode.HEADER):
+            f.seek(body_at)
             _note(path, fm, pos, op, f.read(length))
         elif op == Opcode.MESSAGE:
-            body = f.read(min(length, _MSG.size))
-            if len(body) < _MSG.size:
+            if length < _MSG.size:
                 fm.problems.append(_damaged(path, pos, op, "shorter than a message header"))
             else:
-                _loose(fm, run, pos, body_at + length, *_MSG.unpack(body)[::2])
+                cid, _, t, _ = unpack_msg(win, off + _REC.size)
+                _loose(fm, run, pos, body_at + length, cid, t)
         elif op == Opcode.ATTACHMENT:
             _note_attachment(path, fm, f, pos, length)
         elif op in (Opcode.DATA_END, Opcode.FOOTER):
@@ -348,12 +356,18 @@ def _loose(fm: FileMap, run: list[int], pos: int, end: int, cid: int, t: int) ->
     if not run:
         run += [pos, end, t, t]
     run[1] = end
-    run[2], run[3] = min(run[2], t), max(run[3], t)
+    if t < run[2]:
+        run[2] = t
+    elif t > run[3]:
+        run[3] = t
     run.append(cid)
     fm.loose_messages += 1
-    fm.counts[cid] = fm.counts.get(cid, 0) + 1
-    fm.start_ns = t if fm.start_ns is None else min(fm.start_ns, t)
-    fm.end_ns = t if fm.end_ns is None else max(fm.end_ns, t)
+    counts = fm.counts
+    counts[cid] = counts.get(cid, 0) + 1
+    if fm.start_ns is None or t < fm.start_ns:
+        fm.start_ns = t
+    if fm.end_ns is None or t > fm.end_ns:
+        fm.end_ns = t
 
 
 def _close_run(fm: FileMap, run: list[int]) -> None:
