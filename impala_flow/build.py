@@ -39,6 +39,10 @@ def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> Port
     for c in spec.components.values():
         cls = registry.components.get(c.type)
         if cls is None:
+            why = registry.why_unknown(c.type)
+            if why is not None:  # its plugin is installed but broken: say so, not "did you mean"
+                problems.append(Problem(c.loc, f"component '{c.id}': {why}"))
+                continue
             hint = closest(c.type, registry.components, n=3)
             problems.append(Problem(c.loc, f"component '{c.id}': unknown type '{c.type}'"
                                     + (f" (closest installed: {hint})" if hint else

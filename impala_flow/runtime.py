@@ -92,6 +92,7 @@ a failing source then just ends.
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import logging
 import queue
@@ -103,7 +104,7 @@ from typing import Any, Protocol
 
 from .clock import MissionClock
 from .component import Component, Source
-from .executor import check_source_time, collect_counters, stop_components
+from .executor import check_source_time, collect_counters, event_order, stop_components
 from .network import Network
 from .ports import InputPort, SyncGroup
 from .sample import Sample
@@ -351,8 +352,6 @@ class RealTimeExecutor:
 
     # --- timers ---------------------------------------------------------------------
     def _timer_loop(self, timers: list[tuple[_State, str, int]]) -> None:
-        import heapq
-
         now = self.clock.now_ns
         t0 = now()
         heap = []
@@ -384,7 +383,7 @@ class RealTimeExecutor:
     # --- the run --------------------------------------------------------------------
     def run(self) -> RunSummary:
         net = self.net
-        order = net.order()
+        order = event_order(net)  # as offline: ties by component id, never by YAML order
         summary = self.summary
         clock = self.clock
         now = clock.now_ns

@@ -82,9 +82,33 @@ class RunSummary:
         return {k: {"blocked": st["blocked"], "blocked_s": st.get("blocked_ns", 0) / 1e9}
                 for k, st in self.inputs.items() if st.get("blocked")}
 
+    def source_losses(self) -> dict[str, dict[str, Any]]:
+        """Samples a component could not produce, from its ``summary()``: a reader of a
+        damaged recording reports ``lost`` ({output: count, or None when unknown}) and
+        ``lost_ranges_s`` ([output, from s, to s], ...). {"comp.port": {"unreadable": n,
+        "missing_s": [[a, b], ...]}}."""
+        out: dict[str, dict[str, Any]] = {}
+        for cid, extra in self.extra.items():
+            lost = (extra or {}).get("lost") if isinstance(extra, dict) else None
+            if not isinstance(lost, dict):
+                continue
+            ranges: dict[str, list[list[float]]] = {}
+            for item in extra.get("lost_ranges_s") or []:
+                port, a, b = item
+                ranges.setdefault(str(port), []).append([float(a), float(b)])
+            for port, n in lost.items():
+                out[f"{cid}.{port}"] = {"unreadable": n, "missing_s": ranges.get(str(port), [])}
+        return out
+
     @property
     def total_lost(self) -> int:
-        return sum(sum(v.values()) for v in self.drops().values())
+        """Samples dropped, unmatched or unconsumed at inputs, plus those sources could not read."""
+        return (sum(sum(v.values()) for v in self.drops().values())
+                + sum(v["unreadable"] or 0 for v in self.source_losses().values()))
+
+    def to_json(self) -> dict[str, Any]:
+        """Everything, for ``--summary-json``: the fields, ``lost`` (source losses) and ``lost_total``."""
+        return {**vars(self), "lost": self.source_losses(), "lost_total": self.total_lost}
 
     def format(self) -> str:
         lines = [
@@ -107,10 +131,14 @@ class RunSummary:
             bits += [f"{k}={v}" for k, v in extra.items()]
             lines.append(f"  {name}: " + ", ".join(bits))
         drops = self.drops()
-        if drops:
-            for k, v in drops.items():
-                lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
-        else:
+        for k, v in drops.items():
+            lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
+        unread = self.source_losses()
+        for k, v in unread.items():
+            n = "an unknown number of" if v["unreadable"] is None else v["unreadable"]
+            missing = ", ".join(f"{a:.3f}..{b:.3f} s" for a, b in v["missing_s"])
+            lines.append(f"  LOST at {k}: {n} unreadable (damaged chunks; missing t={missing})")
+        if not drops and not unread:
             lines.append("  no sample dropped")
         for k, v in self.backpressure().items():
             lines.append(f"  BACKPRESSURE at {k}: producers blocked {v['blocked']} times, "

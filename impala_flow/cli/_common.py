@@ -134,8 +134,11 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
     except ComponentError as e:
         bar.close()
         partial = getattr(e, "summary", None)
-        if partial is not None and not quiet:
-            print(partial.format(), file=sys.stderr)
+        if partial is not None:
+            if not quiet:
+                print(partial.format(), file=sys.stderr)
+            if on_summary:  # a failed run's summary too (its error, the events it processed)
+                on_summary(partial)
         raise CommandError(str(e), EXIT_FAILED) from e
     bar.close()
     if not quiet:

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-from typing import Any
 
 from ..graph import GraphError, resolve_graph
 from ..io import MissionReader, RecordingError
@@ -43,28 +41,6 @@ def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
     return [c.id for c in spec.components.values() if c.type == REPLAYER]
 
 
-def replay_losses(summary: RunSummary, ids: list[str]) -> dict[str, dict[str, Any]]:
-    """"replayer.port" -> {"unreadable": n} for the messages the replayers could not read
-    (damaged chunks; n None when the file cannot say how many), from their summary()."""
-    out: dict[str, dict[str, Any]] = {}
-    for cid in ids:
-        for port, n in ((summary.extra.get(cid) or {}).get("lost") or {}).items():
-            out[f"{cid}.{port}"] = {"unreadable": n}
-    return out
-
-
-def lost_lines(summary: RunSummary, ids: list[str]) -> list[str]:
-    """``LOST at replayer.port`` lines, as the run summary prints them for inputs, with the
-    time ranges missing."""
-    ranges: dict[str, list[str]] = {}
-    for cid in ids:
-        for port, a, b in (summary.extra.get(cid) or {}).get("lost_ranges_s", []):
-            ranges.setdefault(f"{cid}.{port}", []).append(f"{a:.3f}..{b:.3f} s")
-    return [f"  LOST at {k}: {'an unknown number of' if v['unreadable'] is None else v['unreadable']} "
-            f"unreadable (damaged chunks; missing t={', '.join(ranges.get(k, []))})"
-            for k, v in replay_losses(summary, ids).items()]
-
-
 def check_recording(path: str) -> None:
     """One line, exit 1, when FILE is not a readable recording (before the graph is built)."""
     try:
@@ -94,16 +70,10 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"--summary-json {args.summary_json}: cannot write ({e.strerror})", EXIT_USAGE) \
                 from None
 
-    def report(summary: RunSummary) -> None:
-        text = summary.format()
-        extra = [line for line in lost_lines(summary, ids) if line.split(":")[0] not in text]
-        if extra:
-            print("\n".join(extra), file=sys.stderr)
+    def report(summary: RunSummary) -> None:  # the LOST lines are in summary.format()
         if args.summary_json:
-            lost = replay_losses(summary, ids)
-            total = summary.total_lost + sum(v["unreadable"] or 0 for v in lost.values())
             with open(args.summary_json, "w", encoding="utf-8") as f:
-                json.dump({**vars(summary), "lost": lost, "lost_total": total}, f, indent=2, default=str)
+                json.dump(summary.to_json(), f, indent=2, default=str)
 
     return run_network(session, spec, speed=args.speed,
                        progress=False if args.no_progress else None, on_summary=report)

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     def write(summary):  # type: ignore[no-untyped-def]
         if args.summary_json:
             with open(args.summary_json, "w", encoding="utf-8") as f:
-                json.dump({**vars(summary), "lost_total": summary.total_lost}, f, indent=2, default=str)
+                json.dump(summary.to_json(), f, indent=2, default=str)
 
     return run_network(session, spec, speed=args.speed, progress=False if args.no_progress else None,
                        on_summary=write)

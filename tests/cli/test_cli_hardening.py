@@ -4,6 +4,7 @@ unknown --var."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -91,3 +92,24 @@ def test_an_ambiguous_octal_on_the_command_line_exits_2(installed: Installed, wr
     assert "--set src.count=010: '010': a leading zero is ambiguous (YAML 1.1 reads octal 8, YAML 1.2 10)" in err
     code, _, err = installed.main("run", str(g), "--var", "gain=010", capsys=capsys)
     assert code == 2 and _one_error(err).startswith("impala-flow run: error: --var gain=010: '010': a leading zero")
+
+
+def test_a_failed_run_still_writes_its_summary_json(installed: Installed, write: Write, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The JSON of a failed run names the error and counts what was processed before it:
+    Boom raises on its 3rd sample (at=2), so it processed 2 and the ticker emitted 3."""
+    g = write("boom.yaml", """\
+name: boom
+components:
+  src: {type: clitest.Ticker, params: {count: 6, period: 0.5}}
+  boom: {type: clitest.Boom, params: {at: 2}}
+connections:
+  - src.tick -> boom.x
+""")
+    out = tmp_path / "s.json"
+    code, _, err = installed.main("run", str(g), "--no-progress", "--summary-json", str(out), capsys=capsys)
+    assert code == 1 and "boom on purpose" in err
+    s = json.loads(out.read_text())
+    assert "boom on purpose" in s["error"] and "'boom'" in s["error"]
+    assert s["processed"]["boom"] == 2 and s["emitted"]["src.tick"] == 3
+    assert s["events"] == 3 + 3  # 3 source events and 3 deliveries, the last one failing

@@ -80,6 +80,10 @@ def test_a_graph_using_the_broken_plugins_types_fails(with_missing: Installed, w
     r = with_missing.run("validate", str(write("bad.yaml", USES_BROKEN)))
     assert r.returncode == 2
     assert "missing.Thing" in r.stderr and "Traceback" not in r.stderr
+    # the reason is the broken plugin, not a typo: its error and the hint, no "closest installed"
+    assert "comes from plugin 'missing', which failed to load" in r.stderr
+    assert MISSING_ERR in r.stderr and "IMPALA_FLOW_DISABLE_PLUGINS=missing" in r.stderr
+    assert "closest installed" not in r.stderr
 
 
 def test_module_raising_at_import_keeps_the_plugin_commands(installed: Installed) -> None:

@@ -144,7 +144,8 @@ def test_replay_prints_lost_lines_and_json(mission: Path, tmp_path: Path,
     for topic, n in lost.items():
         assert f"LOST at mission.{topic}: {n} unreadable" in err
     summary = json.loads(out.read_text())
-    assert summary["lost"] == {f"mission.{t}": {"unreadable": n} for t, n in lost.items()}
+    assert {k: v["unreadable"] for k, v in summary["lost"].items()} == {f"mission.{t}": n for t, n in lost.items()}
+    assert all(v["missing_s"] for v in summary["lost"].values())  # the time ranges missing
     assert summary["lost_total"] == sum(lost.values())
     assert summary["extra"]["mission"]["lost"] == lost
 
@@ -176,3 +177,19 @@ def test_info_lists_attachments_and_mirrors_apart(tmp_path: Path, capsys: pytest
     del data
     assert main(["info", str(path)]) == 0
     assert "10 of them Foxglove mirror copies" in capsys.readouterr().out
+
+
+def test_run_prints_the_same_lost_lines_as_replay(mission: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """`run` with a replayer reading a damaged file says what it lost, as `replay` does."""
+    bad, lost = _damage_chunk(mission, 2)
+    graph = _graph(tmp_path)
+    out = tmp_path / "summary.json"
+    assert main(["run", str(graph), "--set", f"mission.path={mission}", "--no-progress",
+                 "--summary-json", str(out)]) == 0
+    err = capsys.readouterr().err
+    for topic, n in lost.items():
+        assert f"LOST at mission.{topic}: {n} unreadable (damaged chunks; missing t=" in err
+    assert "no sample dropped" not in err
+    summary = json.loads(out.read_text())
+    assert summary["lost_total"] == sum(lost.values())
