@@ -14,6 +14,7 @@ from impala_flow.msgs import SPEED_OF_LIGHT_MPS as C
 from impala_radar.sim.antenna import AzimuthPattern
 from impala_radar.sim.clutter import grazing_factor, vegetation_jitter
 from impala_radar.sim.presets import IMPALA, K2PI, NAVTECH
+from impala_radar.sim.scenario import load_scenario
 from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
 from impala_radar.sim.spectra import (
     RadarParams,
@@ -107,6 +108,14 @@ def test_k2pi_power_budget_follows_table_one():
     k = int(round(r_m / cfg.range_per_bin_m))
     g2 = math.exp(-8 * math.log(2) * (math.radians(0.5) / cfg.beam_width_rad) ** 2)  # beam 0 at 0.5 deg
     assert 10 * math.log10(beam.up[k] / (expected * g2)) == pytest.approx(0.0, abs=0.1)
+
+
+@pytest.mark.parametrize("name", ["campus-open", "campus-loop"])
+def test_k2pi_scenarios_use_the_table_one_budget(name):
+    """Every K2Pi scenario file: P_t G^2 = 0.1 W (20 dBm) x 100^2 (20 dB, twice) = 1000 W."""
+    s = load_scenario(name, duration_s=0.01)
+    assert s.config.name == K2PI.name
+    assert s.params.pt_g2_w(s.config) == pytest.approx(0.1 * 100.0**2, rel=1e-12)
 
 
 # --- 3. developed speckle ------------------------------------------------------------------
@@ -365,11 +374,11 @@ def test_thicket_power_correlation_between_turns_follows_the_jitter():
 
 
 def test_bad_physics_parameters_are_one_line_scenario_errors(tmp_path):
-    from impala_radar.sim.scenario import ScenarioError, load_scenario
+    from impala_radar.sim.scenario import ScenarioError
 
     f = tmp_path / "bad.yaml"
     f.write_text("world: beynes\nseed: 1\npreset: k2pi\nradar: {sidelobe_db: -5.0}\n")
-    with pytest.raises(ScenarioError, match=r"bad\.yaml: radar\.sidelobe_db = -5\.0 must be in") as e:
+    with pytest.raises(ScenarioError, match=r"bad\.yaml:4:22: radar\.sidelobe_db = -5\.0 must be in") as e:
         load_scenario(f)
     assert "\n" not in str(e.value)
     with pytest.raises(ValueError, match="speckle_range_m"):

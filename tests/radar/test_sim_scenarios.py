@@ -86,14 +86,46 @@ def test_scenario_shapes_follow_radar_md():
 def test_unknown_keys_are_one_line_errors(tmp_path):
     f = tmp_path / "bad.yaml"
     f.write_text("world: beynes\nseed: 1\npreset: impala\nspeeed: 3\n")
-    with pytest.raises(ScenarioError, match=r"bad\.yaml: unknown key 'speeed'") as e:
+    with pytest.raises(ScenarioError, match=r"bad\.yaml:4:1: unknown key 'speeed'") as e:
         load_scenario(f)
     assert "\n" not in str(e.value)
     f.write_text("world: beynes\nseed: 1\npreset: impala\nradar: {windw: hann}\n")
-    with pytest.raises(ScenarioError, match=r"bad\.yaml: unknown key radar\.'windw'"):
+    with pytest.raises(ScenarioError, match=r"bad\.yaml:4:9: unknown key radar\.'windw'"):
         load_scenario(f)
     f.write_text("world: mars\nseed: 1\npreset: impala\n")
-    with pytest.raises(ScenarioError, match="unknown world 'mars'"):
+    with pytest.raises(ScenarioError, match=r"bad\.yaml:1:8: unknown world 'mars'"):
         load_scenario(f)
     with pytest.raises(ScenarioError, match="valid names: .*beynes"):
         load_scenario("no-such-scenario")
+
+
+@pytest.mark.parametrize(("text", "where", "what"), [
+    # an unknown preset, on the line of its value
+    ("world: beynes\nseed: 1\npreset: lidar\n", "3:9", "unknown radar preset 'lidar'"),
+    # powers and gains that are not physical
+    ("world: beynes\nseed: 1\npreset: k2pi\nradar:\n  antenna_gain_db: -20\n", "5:20",
+     "radar.antenna_gain_db = -20 must be a number > 0 and <= 60"),
+    ("world: beynes\nseed: 1\npreset: k2pi\nradar: {tx_power_dbm: 200.0}\n", "4:23",
+     "radar.tx_power_dbm = 200.0 must be a number in [-30, 60]"),
+    # a radar option out of its range, on its own line
+    ("world: beynes\nseed: 1\npreset: impala\nradar:\n  window: hann\n  temperature_k: -3\n", "6:18",
+     "radar.temperature_k = -3"),
+    # 4 Hz: 250 000 000 ns per turn; 360 beams would be 694 444.4 ns each
+    ("world: urban\nseed: 1\npreset: navtech\nbeams_per_turn: 360\n", "4:17",
+     "beams_per_turn = 360 does not divide the turn of 250000000 ns"),
+    # IMPALA turns in 1 s with 3 kHz ramp pairs: 4 000 beams leave 250 us, shorter than 333 us
+    ("world: beynes\nseed: 1\npreset: impala\nbeams_per_turn: 4000\n", "4:17",
+     "shorter than one modulation period"),
+])
+def test_bad_scenario_values_are_located_one_line_errors(tmp_path, text, where, what):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith(f"{f}:{where}: ") and what in msg, msg
+
+
+def test_a_beam_count_that_divides_the_turn_is_used():
+    s = load_scenario({"world": "urban", "seed": 1, "preset": "navtech", "beams_per_turn": 200})
+    assert s.config.beams_per_turn == 200  # 250 000 000 ns / 200 = 1 250 000 ns >= 1 / 1600 Hz

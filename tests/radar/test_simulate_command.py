@@ -39,3 +39,14 @@ def test_unknown_scenario_is_a_one_line_usage_error(tmp_path, capsys):
     assert main(["simulate", "nowhere", "-o", str(tmp_path / "x.mcap")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("impala-flow simulate: error: scenario 'nowhere':")
+
+
+def test_a_bad_scenario_file_exits_2_naming_file_key_and_line(tmp_path, capsys):
+    bad = tmp_path / "k2pi-typo.yaml"
+    bad.write_text("world: campus\nroute: open\nseed: 1\npreset: k2pi\nradar:\n  tx_power_dbm: 20.0\n"
+                   "  antenna_gain_db: -20.0\n")
+    out = tmp_path / "x.mcap"
+    assert main(["simulate", str(bad), "-o", str(out), "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{bad}:7:20: radar.antenna_gain_db = -20.0" in err[0]
+    assert not out.exists() and not list(tmp_path.glob("*.mcap*"))  # nothing simulated, nothing written

@@ -17,9 +17,14 @@ a seed, a radar preset, optional duration/length limits, vehicle limits, radar o
     radar: {window: hann, noise_figure_db: 10.0}
     sensors: {odometer: {scale_error: 0.01}, gyro: {}, gps: {sigma_m: 0.02}}
 
-Files are read with ``yaml.safe_load`` only. Unknown keys are errors naming the file and
-the key. The seed drives both the world (first child of ``SeedSequence(seed)``) and the
-acquisition noise (second child), so a seed reproduces a mission bit for bit.
+Files are read with impala-flow's safe YAML loader (YAML 1.2 core schema, locations kept).
+Every problem is one line ``file:line:col: ...`` naming the key, before anything is
+simulated: an unknown key, preset, world or route, a radar option out of its range (a
+gain or power that is not physical: ``antenna_gain_db`` <= 0 dBi, ``tx_power_dbm`` or
+``eirp_dbm`` outside [-30, 60] / [-30, 90] dBm), and ``beams_per_turn`` (an optional
+override of the preset's) that does not divide the turn into whole nanoseconds or leaves
+a beam shorter than one modulation period. The seed drives both the world (first child of
+``SeedSequence(seed)``) and the acquisition noise (second child), so a seed reproduces a mission bit for bit.
 """
 
 from __future__ import annotations
@@ -30,9 +35,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from impala_flow.msgs import RadarConfig
+from impala_flow.yamlloc import LocDict, YamlError, load_yaml
 
 from .presets import preset
 from .scenes import SCENES
@@ -44,7 +49,7 @@ __all__ = ["Scenario", "ScenarioError", "load_scenario", "scenario_path", "SCENA
 SCENARIO_DIR = Path(__file__).resolve().parents[3] / "graphs" / "scenarios"
 _TOP_KEYS = {"name", "description", "world", "route", "seed", "preset", "duration_s",
              "length_m", "start_t_ns", "speed_mps", "vehicle", "radar", "sensors",
-             "movers_rate_hz"}
+             "movers_rate_hz", "beams_per_turn"}
 _VEHICLE_KEYS = {"max_curvature_1pm", "max_accel_mps2", "max_lateral_accel_mps2",
                  "rest_at_ends"}
 _RADAR_KEYS = {f.name for f in dataclasses.fields(RadarParams)}
@@ -96,6 +101,15 @@ def scenario_path(name_or_path: str | Path) -> Path:
                         f"(valid names: {', '.join(names)})")
 
 
+def _at(where: str, mapping: Any, key: Any = None, value: bool = False) -> str:
+    """``file:line:col`` of ``key`` (or of its value) in a mapping read with locations."""
+    if isinstance(mapping, LocDict):
+        loc = mapping.value_where(key) if value else (mapping.where(key) if key is not None else mapping.loc)
+        if loc is not None:
+            return str(loc)
+    return where
+
+
 def _check(where: str, mapping: Any, allowed: set[str], label: str = "") -> dict:
     if mapping is None:
         return {}
@@ -104,9 +118,49 @@ def _check(where: str, mapping: Any, allowed: set[str], label: str = "") -> dict
                             f"got {type(mapping).__name__}")
     for key in mapping:
         if key not in allowed:
-            raise ScenarioError(f"{where}: unknown key {label}{key!r} "
+            raise ScenarioError(f"{_at(where, mapping, key)}: unknown key {label}{key!r} "
                                 f"(valid: {', '.join(sorted(allowed))})")
-    return dict(mapping)
+    return mapping
+
+
+#: physical ranges of the power budget (a typo such as a gain of -20 dBi is refused)
+_POWER_RANGES = {"tx_power_dbm": (-30.0, 60.0), "eirp_dbm": (-30.0, 90.0), "antenna_gain_db": (0.0, 60.0)}
+
+
+def _check_power(where: str, radar: Any) -> None:
+    for key, (lo, hi) in _POWER_RANGES.items():
+        v = radar.get(key) if isinstance(radar, dict) else None
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo < v <= hi if lo == 0.0 else lo <= v <= hi):
+            what = f"> {lo:g} and <= {hi:g}" if lo == 0.0 else f"in [{lo:g}, {hi:g}]"
+            raise ScenarioError(f"{_at(where, radar, key, value=True)}: radar.{key} = {v!r} must be a "
+                                f"number {what} (a gain or power that is not physical)")
+
+
+def _check_beams(where: str, spec: Any, config: RadarConfig) -> None:
+    n = spec.get("beams_per_turn")
+    if n is None:
+        return
+    at = _at(where, spec, "beams_per_turn", value=True)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 8:
+        raise ScenarioError(f"{at}: beams_per_turn = {n!r} must be an integer >= 8")
+    turn_ns = 1e9 / config.rotation_hz
+    if abs(turn_ns - round(turn_ns)) > 1e-6 or round(turn_ns) % n:
+        raise ScenarioError(f"{at}: beams_per_turn = {n} does not divide the turn of {turn_ns:.0f} ns "
+                            f"({config.name} at {config.rotation_hz:g} Hz) into whole nanoseconds; "
+                            f"divisors near it: {_near_divisors(int(round(turn_ns)), n)}")
+    beam_s = 1.0 / (config.rotation_hz * n)
+    if beam_s * config.modulation_hz < 1.0 - 1e-9:
+        raise ScenarioError(f"{at}: beams_per_turn = {n} leaves {beam_s * 1e6:.1f} us per beam, shorter than "
+                            f"one modulation period of {config.name} ({1e6 / config.modulation_hz:.1f} us)")
+    config.beams_per_turn = n
+
+
+def _near_divisors(total: int, n: int) -> str:
+    below = next((k for k in range(n - 1, 7, -1) if total % k == 0), None)
+    above = next((k for k in range(n + 1, 4 * n) if total % k == 0), None)
+    return ", ".join(str(k) for k in (below, above) if k is not None)
 
 
 def load_scenario(source: str | Path | dict, *, seed: int | None = None,
@@ -120,32 +174,45 @@ def load_scenario(source: str | Path | dict, *, seed: int | None = None,
     else:
         path = scenario_path(source)
         where = str(path)
-        with open(path, encoding="utf-8") as f:
-            spec = yaml.safe_load(f)
+        try:
+            spec = load_yaml(path)
+        except YamlError as e:
+            raise ScenarioError(str(e)) from None
     spec = _check(where, spec, _TOP_KEYS)
     for key in ("world", "seed", "preset"):
         if key not in spec:
-            raise ScenarioError(f"{where}: missing key {key!r}")
+            raise ScenarioError(f"{_at(where, spec)}: missing key {key!r}")
     vehicle = _check(where, spec.get("vehicle"), _VEHICLE_KEYS, "vehicle.")
     radar = _check(where, spec.get("radar"), _RADAR_KEYS, "radar.")
     sensors_spec = _check(where, spec.get("sensors"), _SENSOR_KEYS, "sensors.")
     builder = SCENES.get(spec["world"])
     if builder is None:
-        raise ScenarioError(f"{where}: unknown world {spec['world']!r} "
+        raise ScenarioError(f"{_at(where, spec, 'world', value=True)}: unknown world {spec['world']!r} "
                             f"(valid: {', '.join(sorted(SCENES))})")
+    _check_power(where, radar)
     try:
         config = preset(spec["preset"])
-        sensors = make_sensors(sensors_spec)
+    except (KeyError, ValueError) as e:
+        raise ScenarioError(f"{_at(where, spec, 'preset', value=True)}: {e.args[0] if e.args else e}") from None
+    _check_beams(where, spec, config)
+    try:
         params = RadarParams(**radar)
-        config.window = params.window  # the beams say how their spectra were weighted
+    except (ValueError, TypeError) as e:
+        msg = str(e.args[0] if e.args else e)
+        bad = next((k for k in radar if f"radar.{k} " in msg or f"'{k}'" in msg), None)
+        raise ScenarioError(f"{_at(where, radar, bad, value=True) if bad else _at(where, spec, 'radar')}: "
+                            f"{msg}") from None
+    try:
+        sensors = make_sensors(dict(sensors_spec))
     except (KeyError, ValueError, TypeError) as e:
-        raise ScenarioError(f"{where}: {e.args[0] if e.args else e}") from None
+        raise ScenarioError(f"{_at(where, spec, 'sensors')}: {e.args[0] if e.args else e}") from None
+    config.window = params.window  # the beams say how their spectra were weighted
     seed = int(spec["seed"] if seed is None else seed)
     world_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[0])
     world, routes = builder(world_rng)
     route_name = spec.get("route", "default")
     if route_name not in routes:
-        raise ScenarioError(f"{where}: unknown route {route_name!r} for world "
+        raise ScenarioError(f"{_at(where, spec, 'route', value=True)}: unknown route {route_name!r} for world "
                             f"{spec['world']!r} (valid: {', '.join(sorted(routes))})")
     route = routes[route_name]
     start = int(spec.get("start_t_ns", 0))
