@@ -137,6 +137,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="out/sim2real", help="output folder")
     ap.add_argument("--seed", type=int, default=2019, help="seed of the simulated urban mission")
+    ap.add_argument("--scenario", default="urban", help="scenario name or file simulated (calibration runs)")
     ap.add_argument("--start-s", type=float, default=10.0, help="where the simulated window starts (s): at speed")
     args = ap.parse_args()
     from tests.datasets import find_oxford_sample
@@ -151,7 +152,7 @@ def main() -> None:
     n_scans = len(turns_of(real_mission))
     window_s = n_scans / 4.0 + 0.3
     t0 = time.perf_counter()
-    cli(["simulate", "urban", "-o", str(sim_mission), "--duration", f"{args.start_s + window_s + 0.2:.2f}s",
+    cli(["simulate", args.scenario, "-o", str(sim_mission), "--duration", f"{args.start_s + window_s + 0.2:.2f}s",
          "--seed", str(args.seed), "--no-progress"])
     sim_wall = time.perf_counter() - t0
     real = run_graph(real_mission, out / "real")

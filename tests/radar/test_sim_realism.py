@@ -14,6 +14,7 @@ from impala_flow.msgs import SPEED_OF_LIGHT_MPS as C
 from impala_radar.sim.antenna import AzimuthPattern
 from impala_radar.sim.clutter import grazing_factor, vegetation_jitter
 from impala_radar.sim.presets import IMPALA, K2PI, NAVTECH
+from impala_radar.sim.receiver import adc_counts
 from impala_radar.sim.scenario import load_scenario
 from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
 from impala_radar.sim.spectra import (
@@ -371,6 +372,30 @@ def test_thicket_power_correlation_between_turns_follows_the_jitter():
     still = dataclasses.replace(params, vegetation_motion_m=0.0, vegetation_rcs_jitter_db=0.0)
     img = np.array([m.up for m in _beams(b.build(), cfg, still, duration_s=2.0)], float).reshape(2, 360, -1)
     assert _turn_corr(img[:, :, k]) > 0.999
+
+
+# --- 9. the Navtech output stage --------------------------------------------------------------
+
+def test_output_stage_counts_follow_the_formula():
+    noise = 2e-15
+    p = noise * 10.0 ** (np.array([-30.0, -4.1, -4.0, -3.85, 0.0, 20.0, 300.0]) / 10.0)
+    out = adc_counts(p, noise, 0.5, -4.1, 255)
+    n = np.clip(np.rint((10 * np.log10(p / noise) + 4.1) / 0.5), 0, 255)  # 0, 0, 0, 0 or 1, 8, 48, 255
+    assert np.array_equal(np.rint(10 * np.log10(out) / 0.5), n)
+    assert out[0] == 1.0 and out[-1] == pytest.approx(10 ** 12.75)  # count 0 and the clip at 255
+    assert adc_counts(np.zeros(3), noise, 0.5, -4.1, 255).tolist() == [1.0, 1.0, 1.0]  # no -inf, no warning
+
+
+def test_noise_through_the_output_stage_has_the_zero_fraction_of_its_level():
+    """Thermal noise alone: power exponential of mean N; count 0 for P < N 10^((z + d/2)/10), so
+    P(count 0) = 1 - exp(-10^((z + 0.25)/10)) (z = -4.1 dB, d = 0.5 dB: 0.336)."""
+    params = RadarParams(adc_db_per_count=0.5, adc_zero_db=-4.1, **QUIET)
+    beams = _beams(WorldBuilder(np.random.default_rng(0)).build(), NAVTECH, params, duration_s=0.5)
+    counts = np.rint(10 * np.log10(np.array([b.up for b in beams], float)) / 0.5)
+    assert np.array_equal(counts, np.round(counts)) and counts.min() == 0 and counts.max() <= 255
+    far = counts[:, NAVTECH.n_bins // 2:]  # beyond the leakage skirt: noise only
+    expected = 1 - math.exp(-(10 ** ((-4.1 + 0.25) / 10)))
+    assert np.mean(far == 0) == pytest.approx(expected, abs=0.01)
 
 
 def test_bad_physics_parameters_are_one_line_scenario_errors(tmp_path):

@@ -43,7 +43,7 @@ from impala_flow.msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarC
 from impala_flow.msgs import wrap_angle as _wrap
 
 from .clutter import grazing_factor, hash_uniform, split_tiles, vegetation_jitter
-from .receiver import leakage_echoes, mirror_images
+from .receiver import adc_counts, leakage_echoes, mirror_images
 from .spectra import Echoes, RadarParams, Synthesizer, azimuth_pattern, echoes, received_power_w
 from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
 
@@ -330,6 +330,14 @@ class RadarSimulator:
 def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
                  rng: np.random.Generator) -> Iterator[tuple[int, str, RadarBeam]]:
     config = sim.config
+    p = sim.params
+    adc = None
+    if p.adc_db_per_count is not None:
+        noise_w = sim.synth.noise_per_bin_w
+
+        def adc(x: np.ndarray) -> np.ndarray:
+            return adc_counts(x, noise_w, p.adc_db_per_count, p.adc_zero_db, p.adc_max_count)
+
     turn = 0
     while True:
         t_ns = beam_times_ns(start, turn, config)
@@ -337,6 +345,9 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         if n == 0:
             return
         up, down = sim.turn(trajectory, t_ns[:n], rng)
+        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
+            up = adc(up)
+            down = adc(down) if np.size(down) else down
         for j in range(n):
             yield int(t_ns[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), turn, j, up[j],
                                                    down[j], config)

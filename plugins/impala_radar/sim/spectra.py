@@ -128,6 +128,9 @@ class RadarParams:
     phase_noise_offset_hz: float = 100.0e3
     multipath_reflection_db: float | None = -6.0  # facade power reflection per bounce; None: off
     multipath_min_rcs_m2: float = 1.0  # scatterers mirrored by facades (ghosts)
+    adc_db_per_count: float | None = None  # log-power output stage (Navtech: 0.5 dB); None: raw power
+    adc_zero_db: float = -4.6  # level of count 0 re the mean thermal noise per bin (dB)
+    adc_max_count: int = 255  # the largest count (8 bits)
 
     def __post_init__(self) -> None:
         checks = [
@@ -147,6 +150,8 @@ class RadarParams:
              "<= 0 dB or null"),
             ("multipath_min_rcs_m2", self.multipath_min_rcs_m2 >= 0.0, ">= 0"),
             ("temperature_k", self.temperature_k > 0.0, "> 0"),
+            ("adc_db_per_count", self.adc_db_per_count is None or self.adc_db_per_count > 0.0, "> 0 or null"),
+            ("adc_max_count", self.adc_max_count >= 1, ">= 1"),
         ]
         for name, ok, what in checks:
             if not ok:
