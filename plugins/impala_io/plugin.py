@@ -1,4 +1,5 @@
-"""Entry point of the io plugin: registers io.Recorder and io.Replayer.
+"""Entry point of the io plugin: registers io.Recorder, io.Replayer, io.FoxgloveBridge and the
+``view`` command.
 
 Component modules are imported inside the hook, so loading the plugin (e.g. to build the
 command line) stays cheap.
@@ -13,8 +14,17 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    from .bridge import FoxgloveBridge
     from .recorder import Recorder
     from .replayer import Replayer
 
     registry.add_component(Recorder)
     registry.add_component(Replayer)
+    registry.add_component(FoxgloveBridge)
+
+
+@hookimpl
+def impala_flow_add_commands(subparsers: Any) -> None:
+    from .commands import add_commands
+
+    add_commands(subparsers)

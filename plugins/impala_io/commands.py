@@ -1,0 +1,70 @@
+"""The io plugin's subcommand ``impala-flow view``: stream a recording to Foxglove live."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from impala_flow.cli import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
+from impala_flow.cli._common import Progress, check_speed, open_session
+from impala_flow.io import RecordingError
+from impala_flow.network import Network
+from impala_flow.summary import ComponentError
+
+from .bridge import FoxgloveBridge
+from .replayer import TIME_JUMP, Replayer
+
+__all__ = ["add_commands"]
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "view", help="stream a recording to Foxglove over WebSocket (live view)",
+        description="Replay FILE.mcap at --speed through io.FoxgloveBridge: open Foxglove, "
+        "'Open connection' > 'Foxglove WebSocket', ws://HOST:PORT. Poses, trajectories, grids, point sets and "
+        "object states come in Foxglove's schemas (3D panel), every other stream as JSON (Plot panel). "
+        "Ctrl-C stops. The same bridge works in any graph: add a component of type io.FoxgloveBridge.",
+        epilog="example: impala-flow view out/beynes.mcap --speed 2 --loop",
+    )
+    p.add_argument("file", help="recording (MCAP)")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
+    p.add_argument("--host", default="127.0.0.1", help="interface (default 127.0.0.1; 0.0.0.0: every interface)")
+    p.add_argument("--speed", default="1", help="replay speed factor, or 'max' (default 1: real time)")
+    p.add_argument("--loop", action="store_true", help="replay forever (mission time keeps increasing)")
+    p.add_argument("--backlog", type=int, default=1024,
+                   help="messages kept per client before the oldest are dropped (default 1024)")
+    p.add_argument("--streams", nargs="*", default=[], metavar="PATTERN", help="topics to show (globs; default all)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_view)
+
+
+def run_view(args: argparse.Namespace) -> int:
+    check_speed(args.speed)
+    if not 0 <= args.port <= 65535:
+        raise CommandError(f"--port {args.port}: must be in [0, 65535]", EXIT_USAGE)
+    session = open_session()
+    try:
+        rep = Replayer("mission", path=args.file, streams=list(args.streams), loops=0 if args.loop else 1)
+    except (OSError, ValueError, RecordingError) as e:
+        raise CommandError(str(e), EXIT_FAILED) from None
+    topics = {port: f"mission.{port}" for port in rep.outputs if port != TIME_JUMP}
+    if args.backlog < 1:
+        raise CommandError(f"--backlog {args.backlog}: must be >= 1", EXIT_USAGE)
+    bridge = FoxgloveBridge("view", topics=topics, host=args.host, port=args.port, announce=True,
+                            backlog=args.backlog)
+    net = Network(name="view")
+    net.add(rep)
+    net.add(bridge)
+    rep.registry = bridge.registry = session.registry
+    for port in topics:
+        net.connect(rep.outputs[port], bridge.inputs[port])
+    speed = "max" if args.speed == "max" else float(args.speed)
+    bar = Progress(net, enabled=False if args.no_progress else None, desc="view")
+    try:
+        summary = session.run(net, speed=speed, mode="replay", progress=bar)
+    except ComponentError as e:
+        raise CommandError(str(e), EXIT_FAILED) from None
+    finally:
+        bar.close()
+    print(summary.format(), file=sys.stderr)
+    return EXIT_INTERRUPTED if summary.interrupted else EXIT_OK
