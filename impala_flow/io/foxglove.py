@@ -12,7 +12,14 @@ Pose2D              foxglove.PoseInFrame      yaw -> quaternion about z
 Trajectory2D        foxglove.PosesInFrame     one pose per row of ``xyt``
 Grid                foxglove.Grid             corner = cell (0, 0) centre - cell_m / 2
 Points2D            foxglove.PointCloud       fields x, y, z (= 0), value (float32)
-ObjectStates        foxglove.PointCloud       fields x, y, z, id, vx, vy (float32)
+ObjectStates        foxglove.SceneUpdate      one entity per object (id = its id): a car-sized
+                                              box, a label "id N  V m/s", a velocity arrow
+                                              of length V x 1 s; lifetime 0.5 s
+RadarDetections     foxglove.PointCloud       frame ``radar``: x = r cos(az), y = r sin(az),
+                                              z = 0, range_m, radial_speed_mps, amplitude,
+                                              score, beam (float32)
+RadarScan           foxglove.RawImage         ``32FC1``, one row per beam, one column per
+                                              range bin, 10 log10(power) (dB); frame ``radar``
 =================== ========================= ==========================================
 
 The mirror channels carry the metadata ``impala_flow.mirror_of = <topic>``; readers of
@@ -27,6 +34,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from foxglove_schemas_protobuf.ArrowPrimitive_pb2 import ArrowPrimitive
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
 from foxglove_schemas_protobuf.Grid_pb2 import Grid as FxGrid
 from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
@@ -34,10 +44,15 @@ from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector2_pb2 import Vector2
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.descriptor import FileDescriptor
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
+from google.protobuf.duration_pb2 import Duration
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from .. import msgs
@@ -163,16 +178,66 @@ def _points(p: msgs.Points2D, t_ns: int) -> bytes:
                                   "value": value})
 
 
+#: what an object looks like in the 3D panel (a car: tracker output and movers' truth)
+_BOX_M = (4.5, 1.8, 1.5)
+_OBJECT_COLOR = Color(r=1.0, g=0.55, b=0.1, a=0.8)
+_OBJECT_LIFETIME = Duration(seconds=0, nanos=500_000_000)
+
+
 def _objects(o: msgs.ObjectStates, t_ns: int) -> bytes:
     xy = np.asarray(o.xy_m, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(o.v_xy_mps, dtype=np.float64).reshape(-1, 2)
-    ids = np.asarray(o.ids, dtype=np.float64).reshape(-1)
+    ids = np.asarray(o.ids).reshape(-1)
     if len(v) != len(xy):
         v = np.zeros_like(xy)
     if len(ids) != len(xy):
-        ids = np.arange(len(xy), dtype=np.float64)
-    return _cloud(o.frame, t_ns, {"x": xy[:, 0], "y": xy[:, 1], "z": np.zeros(len(xy)),
-                                  "id": ids, "vx": v[:, 0], "vy": v[:, 1]})
+        ids = np.arange(len(xy))
+    stamp = _stamp(t_ns)
+    entities = []
+    for (x, y), (vx, vy), oid in zip(xy.tolist(), v.tolist(), ids.tolist(), strict=True):
+        speed, heading = math.hypot(vx, vy), math.atan2(vy, vx)
+        pose = _pose(x, y, heading)
+        pose.position.z = 0.5 * _BOX_M[2]
+        label = _pose(x, y, 0.0)
+        label.position.z = _BOX_M[2] + 0.5
+        arrow = _pose(x, y, heading)
+        arrow.position.z = _BOX_M[2]
+        entities.append(SceneEntity(
+            timestamp=stamp, frame_id=o.frame, id=str(oid), lifetime=_OBJECT_LIFETIME,
+            cubes=[CubePrimitive(pose=pose, size=Vector3(x=_BOX_M[0], y=_BOX_M[1], z=_BOX_M[2]),
+                                 color=_OBJECT_COLOR)],
+            texts=[TextPrimitive(pose=label, billboard=True, font_size=14.0, scale_invariant=True,
+                                 color=Color(r=1.0, g=1.0, b=1.0, a=1.0), text=f"id {oid}  {speed:.1f} m/s")],
+            arrows=[ArrowPrimitive(pose=arrow, shaft_length=max(speed, 1e-3), shaft_diameter=0.15,
+                                   head_length=0.6, head_diameter=0.4, color=_OBJECT_COLOR)] if speed > 0 else [],
+            metadata=[]))
+    return SceneUpdate(entities=entities).SerializeToString()
+
+
+def _detections(d: msgs.RadarDetections, t_ns: int) -> bytes:
+    r = np.asarray(d.range_m, dtype=np.float64).reshape(-1)
+    az = np.asarray(d.azimuth_rad, dtype=np.float64).reshape(-1)
+    n = len(r)
+
+    def col(a: np.ndarray) -> np.ndarray:
+        a = np.asarray(a, dtype=np.float64).reshape(-1)
+        return a if len(a) == n else np.full(n, np.nan)
+
+    return _cloud("radar", t_ns, {"x": r * np.cos(az), "y": r * np.sin(az), "z": np.zeros(n),
+                                  "range_m": r, "radial_speed_mps": col(d.radial_speed_mps),
+                                  "amplitude": col(d.amplitude), "score": col(d.score),
+                                  "beam": col(d.beam)})
+
+
+def _scan(sc: msgs.RadarScan, t_ns: int) -> bytes:
+    p = np.asarray(sc.power, dtype=np.float64)
+    if p.ndim != 2:
+        p = p.reshape(len(np.asarray(sc.azimuth_rad)), -1) if p.size else np.zeros((0, 0))
+    db = 10.0 * np.log10(np.maximum(p, np.finfo(np.float64).tiny))  # zero power: -3077 dB, not -inf
+    img = np.ascontiguousarray(db, dtype="<f4")
+    rows, cols = img.shape
+    return RawImage(timestamp=_stamp(t_ns), frame_id="radar", width=cols, height=rows,
+                    encoding="32FC1", step=4 * cols, data=img.tobytes()).SerializeToString()
 
 
 _TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
@@ -180,7 +245,9 @@ _TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
     msgs.Trajectory2D: (PosesInFrame, _trajectory),
     msgs.Grid: (FxGrid, _grid),
     msgs.Points2D: (PointCloud, _points),
-    msgs.ObjectStates: (PointCloud, _objects),
+    msgs.ObjectStates: (SceneUpdate, _objects),
+    msgs.RadarDetections: (PointCloud, _detections),
+    msgs.RadarScan: (RawImage, _scan),
 }
 _cache: dict[type, FoxgloveMirror] = {}
 

@@ -82,3 +82,55 @@ def test_foxglove_can_be_disabled(tmp_path: Path, registry: CodecRegistry) -> No
         w.add_topic("slam/pose", msgs.Pose2D)
         w.write("slam/pose", 0, msgs.Pose2D(0, 0, 0))
     assert _mirrors(path) == {}
+
+
+def test_radar_and_objects_mirrors(tmp_path: Path, registry: CodecRegistry) -> None:
+    """Detections as a point cloud with their fields (x = r cos az, y = r sin az), a scan as a
+    32FC1 image of 10 log10(power), objects as scene entities named by their ids."""
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    path = tmp_path / "m.mcap"
+    t_ns = 2_000_000_000
+    det = msgs.RadarDetections(turn=3, t_ns=np.array([1, 2]), beam=np.array([5, 90]),
+                               azimuth_rad=np.array([0.0, math.pi / 2]), range_m=np.array([10.0, 20.0]),
+                               radial_speed_mps=np.array([-1.5, 0.25]), amplitude=np.array([3.0, 4.0]),
+                               score=np.array([0.9, 0.5]))
+    power = np.array([[1.0, 10.0, 100.0], [0.001, 1e6, 0.0]], np.float32)
+    scan = msgs.RadarScan(turn=3, t_ns=np.array([1, 2]), azimuth_rad=np.array([0.0, 0.1]), power=power,
+                          down=np.zeros((0, 0), np.float32), config=msgs.RadarConfig(
+                              "x", 24e9, 200e6, 1000.0, 100.0, 3, 0.05, 1.0, 2, 0.0, 10.0))
+    objects = msgs.ObjectStates(ids=np.array([7, 12]), xy_m=np.array([[1.0, 2.0], [3.0, 4.0]]),
+                                v_xy_mps=np.array([[3.0, 4.0], [0.0, 0.0]]))
+    with MissionWriter(path, codecs=registry) as w:
+        for topic, t in [("pairer/detections", msgs.RadarDetections), ("radar/scan", msgs.RadarScan),
+                         ("tracker/tracks", msgs.ObjectStates)]:
+            w.add_topic(topic, t)
+        w.write("pairer/detections", t_ns, det)
+        w.write("radar/scan", t_ns, scan)
+        w.write("tracker/tracks", t_ns, objects)
+    mirrors = _mirrors(path)
+
+    pc = PointCloud.FromString(mirrors["/foxglove/pairer/detections"][2].data)
+    names = [f.name for f in pc.fields]
+    assert names == ["x", "y", "z", "range_m", "radial_speed_mps", "amplitude", "score", "beam"]
+    pts = np.frombuffer(pc.data, "<f4").reshape(-1, len(names))
+    np.testing.assert_allclose(pts[:, :2], [[10.0, 0.0], [0.0, 20.0]], atol=1e-5)
+    np.testing.assert_array_equal(pts[:, 3:], np.array([[10, -1.5, 3, 0.9, 5], [20, 0.25, 4, 0.5, 90]], "<f4"))
+    assert pc.frame_id == "radar"
+
+    img = RawImage.FromString(mirrors["/foxglove/radar/scan"][2].data)
+    assert (img.width, img.height, img.encoding, img.step) == (3, 2, "32FC1", 12)
+    db = np.frombuffer(img.data, "<f4").reshape(2, 3)
+    np.testing.assert_allclose(db[0], [0.0, 10.0, 20.0], atol=1e-5)
+    np.testing.assert_allclose(db[1, :2], [-30.0, 60.0], atol=1e-4)
+    assert np.isfinite(db).all()  # zero power: a very low level, never -inf
+
+    scene = SceneUpdate.FromString(mirrors["/foxglove/tracker/tracks"][2].data)
+    assert [e.id for e in scene.entities] == ["7", "12"]
+    moving, still = scene.entities
+    assert moving.texts[0].text == "id 7  5.0 m/s" and moving.arrows[0].shaft_length == 5.0
+    q = moving.arrows[0].pose.orientation
+    assert math.isclose(2 * math.atan2(q.z, q.w), math.atan2(4.0, 3.0))  # along the velocity
+    assert (moving.cubes[0].pose.position.x, moving.cubes[0].pose.position.y) == (1.0, 2.0)
+    assert not still.arrows and still.texts[0].text == "id 12  0.0 m/s"
