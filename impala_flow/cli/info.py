@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import datetime
 import json
 from dataclasses import asdict
 
@@ -44,8 +45,19 @@ def codecs() -> CodecRegistry:
         return CodecRegistry.with_standard_types()
 
 
+#: stamps past 1990 are read as UNIX times (dated missions) and shown with their UTC date
+_DATED_NS = 631_152_000 * 10**9
+
+
 def _t(t_ns: int | None) -> str:
-    return "-" if t_ns is None else f"{t_ns / 1e9:.9f} s"
+    if t_ns is None:
+        return "-"
+    s, ns = divmod(int(t_ns), 10**9)
+    text = f"{s}.{ns:09d} s"
+    if t_ns >= _DATED_NS:
+        d = datetime.datetime.fromtimestamp(s, tz=datetime.UTC)
+        text += f" ({d:%Y-%m-%d %H:%M:%S}.{ns // 1000:06d} UTC)"
+    return text
 
 
 def format_info(info: RecordingInfo, metadata: bool = False) -> str:

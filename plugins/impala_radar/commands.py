@@ -48,6 +48,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=_duration_s, default=None, help="mission length, e.g. 60s, 5min "
                    "(default: the scenario's full length)")
     p.add_argument("--seed", type=int, default=None, help="seed of the world and the sensor noise")
+    p.add_argument("--epoch-utc", default=None, metavar="DATE",
+                   help="UTC date and time the mission starts at (default 2026-01-01T00:00:00Z; '' for t = 0)")
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_simulate)
@@ -94,6 +96,8 @@ def _simulate(args: argparse.Namespace) -> int:
         params["seed"] = args.seed
     if args.duration is not None:
         params["duration_s"] = float(args.duration)
+    if args.epoch_utc is not None:
+        params["epoch_utc"] = args.epoch_utc
     try:
         sim = Simulator("sim", **params)
         sim.start()  # loads and checks the scenario now, for a one-line usage error

@@ -10,6 +10,7 @@ in time order, so every downstream graph runs unchanged on live, simulated or re
 
 from __future__ import annotations
 
+import datetime
 from collections.abc import Iterator
 from typing import Any
 
@@ -140,6 +141,25 @@ class RadiateScans(_NavtechFolderScans):
         return {**super()._options(), "range_resolution_m": self.range_resolution_m, "rotation": self.rotation}
 
 
+#: start of simulated missions unless told otherwise (Foxglove's timeline shows real dates)
+DEFAULT_EPOCH = "2026-01-01T00:00:00Z"
+
+
+def epoch_ns(text: str) -> int:
+    """UNIX time in ns of an ISO 8601 date and time (UTC when no zone is given); "" -> 0."""
+    if not text.strip():
+        return 0
+    try:
+        d = datetime.datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise ValueError(f"epoch_utc {text!r} is not an ISO 8601 date and time "
+                         "(e.g. 2026-01-01T00:00:00Z)") from None
+    if d.tzinfo is None:
+        d = d.replace(tzinfo=datetime.UTC)
+    delta = d - datetime.datetime(1970, 1, 1, tzinfo=datetime.UTC)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
+
+
 #: source class of each dataset format of ``impala-flow import``
 DATASET_SOURCES: dict[str, type[_NavtechFolderScans]] = {
     "oxford": OxfordScans, "boreas": BoreasScans, "radiate": RadiateScans}
@@ -149,12 +169,17 @@ class Simulator(Source):
     """The physically based FMCW rotating-radar simulator on a scenario world.
 
     ``scenario`` is a name under ``graphs/scenarios/`` (beynes, campus-open, campus-loop,
-    semi-urban, datmo, urban) or a path to a scenario YAML file.
+    semi-urban, datmo, urban) or a path to a scenario YAML file. Samples are stamped from
+    ``epoch_utc`` (UNIX time in ns: a recording's timeline shows that date in Foxglove);
+    ``epoch_utc: ""`` starts the mission at t = 0. The simulated world is the same whatever
+    the epoch: only the stamps move.
     """
 
     scenario = Param(str, default="beynes", path="read_or_name", doc="scenario name or YAML file")
     seed = Param(int, default=-1, doc="random seed of the world and the sensor noise (-1: the scenario's)")
     duration_s = Param(float, default=0.0, ge=0.0, doc="mission duration (0: the scenario's)")
+    epoch_utc = Param(str, default=DEFAULT_EPOCH, doc="UTC date and time of the mission's start "
+                      "(ISO 8601, e.g. 2026-01-01T00:00:00Z); empty: t = 0")
     beams = Output(RadarBeam, doc="radar beams, each at the vehicle pose of its own time")
     odometer = Output(Speed, doc="odometer speed (scale error, noise, slip)")
     gyro = Output(YawRate, doc="gyrometer yaw rate (bias, noise, bias random walk)")
@@ -172,9 +197,15 @@ class Simulator(Source):
     def start(self) -> None:
         if self.built is None:
             self.built = self._scenario()
+        self.epoch_ns = epoch_ns(self.epoch_utc)
 
     def generate(self) -> Iterator[tuple[int, str, Any]]:
-        yield from self.built.simulate()
+        e = self.epoch_ns
+        if not e:
+            yield from self.built.simulate()
+            return
+        for t, port, msg in self.built.simulate():
+            yield t + e, port, msg
 
     def duration_hint_ns(self) -> int | None:
         if self.built is None:

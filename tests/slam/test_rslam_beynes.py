@@ -33,7 +33,7 @@ def beynes():
     run_components(sim, PanoramicBuilder("pano"), sink, connections=[
         "sim.beams -> pano.beams", "sim.odometer -> pano.odometer", "sim.gyro -> pano.gyro", "pano.image -> sink.x"])
     grids = sink.values()
-    truth = sim.built.trajectory.pose(np.array(sink.times(), np.int64))
+    truth = sim.built.trajectory.pose(np.array(sink.times(), np.int64) - sim.epoch_ns)  # scenario time
     return grids, truth
 
 

@@ -31,7 +31,7 @@ def _run(tmp_path, clockwise: bool):
                    connections=["sim.beams -> pano.beams", "sim.odometer -> pano.odometer", "sim.gyro -> pano.gyro",
                                 "pano.image -> speckle.image", "speckle.filtered -> slam.image",
                                 "slam.pose -> poses.x", "pano.image -> images.x"])
-    t = np.array(poses.times(), np.int64)
+    t = np.array(poses.times(), np.int64) - sim.epoch_ns  # the scenario trajectory's own time
     est = np.array([[p.x_m, p.y_m, p.theta_rad] for p in poses.values()])
     return t, est, sim.built.trajectory, images.values()
 
