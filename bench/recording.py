@@ -143,6 +143,38 @@ def foreign(tmp: Path, n: int, reps: int) -> dict[str, float]:
             "foreign_read_ratio_vs_mcap": t_bare / t_ours}
 
 
+def json_views(tmp: Path, n: int, reps: int, reg: CodecRegistry) -> dict[str, float]:
+    """What the JSON views (generic decodability of every stream) cost: the same scalar and
+    beam streams written with and without them (write time, file size)."""
+    from impala_radar.sim.presets import IMPALA  # the beams' config, as a simulated mission has it
+
+    speeds = [msgs.Speed(1.0 + 1e-3 * i, 0.01) for i in range(n)]
+    rng = np.random.default_rng(2)  # spectra that differ, as real ones do (zstd finds no repeats)
+    beams = [msgs.RadarBeam(0.01 * i, i // 360, i % 360, rng.random(IMPALA.n_bins, dtype=np.float32),
+                            rng.random(IMPALA.n_bins, dtype=np.float32), IMPALA) for i in range(n // 4)]
+    out = {}
+    for label, items, t in (("scalar", speeds, msgs.Speed), ("beam", beams, msgs.RadarBeam)):
+        sizes, times = {}, {}
+        for views in (False, True):
+            path = tmp / f"views-{label}-{views}.mcap"
+
+            def write(path: Path = path, views: bool = views, t: type = t, items: list = items) -> None:
+                with MissionWriter(path, codecs=reg, json_views=views, flush_period_s=None) as w:
+                    w.add_topic("x", t)
+                    for i, m in enumerate(items):
+                        w.write("x", i * 1000, m)
+
+            times[views] = best_of(reps, write)
+            sizes[views] = path.stat().st_size
+        extra_us = (times[True] - times[False]) / len(items) * 1e6
+        print(f"json views, {label} stream ({len(items)} msgs): write x{times[True] / times[False]:.2f} time "
+              f"(+{extra_us:.1f} us per message), file x{sizes[True] / sizes[False]:.2f} size")
+        out |= {f"json_views_{label}_write_time_ratio": times[True] / times[False],
+                f"json_views_{label}_extra_us_per_msg": extra_us,
+                f"json_views_{label}_size_ratio": sizes[True] / sizes[False]}
+    return out
+
+
 def make_big(path: Path, size_gb: float, reg: CodecRegistry) -> tuple[int, int]:
     """A mission of ~size_gb: a 1 MiB float32 image at 10 Hz, poses at 100 Hz."""
     rng = np.random.default_rng(0)
@@ -203,6 +235,7 @@ def main() -> None:
                              args.reps)
         del poses
         result |= foreign(tmp, args.poses, args.reps)
+        result |= json_views(tmp, args.poses // 4, args.reps, reg)
 
         big = tmp / "big.mcap"
         t0 = time.perf_counter()

@@ -22,8 +22,11 @@ RadarScan           foxglove.RawImage         ``32FC1``, one row per beam, one c
                                               range bin, 10 log10(power) (dB); frame ``radar``
 =================== ========================= ==========================================
 
-The mirror channels carry the metadata ``impala_flow.mirror_of = <topic>``; readers of
-impala types skip them.
+Every other type (speeds, yaw rates, twists, any plugin's message, plain numbers) is
+mirrored as JSON with a JSON Schema generated from its dataclass
+(:mod:`impala_flow.io.jsonview`), so every stream of a recording has a channel generic
+MCAP tools and Foxglove's Plot panel decode. The mirror channels carry the metadata
+``impala_flow.mirror_of = <topic>``; readers of impala types skip them.
 """
 
 from __future__ import annotations
@@ -56,6 +59,7 @@ from google.protobuf.duration_pb2 import Duration
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from .. import msgs
+from . import jsonview
 
 __all__ = ["FoxgloveMirror", "mirror_for", "foxglove_topic", "file_descriptor_set",
            "MIRROR_KEY", "FOXGLOVE_PREFIX"]
@@ -71,11 +75,14 @@ def foxglove_topic(topic: str) -> str:
 
 @dataclass(frozen=True)
 class FoxgloveMirror:
-    """How one impala type is mirrored: schema name, FileDescriptorSet, converter."""
+    """How one impala type is mirrored: schema (name, data, encoding), message encoding,
+    converter."""
 
     schema_name: str
     schema_data: bytes
-    convert: Callable[[Any, int], bytes]  # (value, t_ns) -> serialized protobuf
+    convert: Callable[[Any, int], bytes]  # (value, t_ns) -> serialized message
+    schema_encoding: str = "protobuf"  # the FileDescriptorSet; "jsonschema" for JSON views
+    message_encoding: str = "protobuf"
 
 
 def file_descriptor_set(message_class: Any) -> bytes:
@@ -249,16 +256,27 @@ _TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
     msgs.RadarDetections: (PointCloud, _detections),
     msgs.RadarScan: (RawImage, _scan),
 }
-_cache: dict[type, FoxgloveMirror] = {}
+_cache: dict[tuple[type, bool], FoxgloveMirror | None] = {}
 
 
-def mirror_for(t: type) -> FoxgloveMirror | None:
-    """The Foxglove mirror of type ``t``, or None when Foxglove has no schema for it."""
-    if t in _cache:
-        return _cache[t]
+def mirror_for(t: type, json_views: bool = False) -> FoxgloveMirror | None:
+    """The Foxglove mirror of type ``t``: its Foxglove schema (table above), else, with
+    ``json_views``, its JSON view (:mod:`impala_flow.io.jsonview`); None for ``None``."""
+    key = (t, json_views)
+    if key in _cache:
+        return _cache[key]
     entry = _TABLE.get(t)
-    if entry is None:
-        return None
-    pb, convert = entry
-    m = _cache[t] = FoxgloveMirror(pb.DESCRIPTOR.full_name, file_descriptor_set(pb), convert)
+    if entry is not None:
+        pb, convert = entry
+        m: FoxgloveMirror | None = FoxgloveMirror(pb.DESCRIPTOR.full_name, file_descriptor_set(pb), convert)
+    elif t is type(None) or not json_views:
+        m = None
+    else:
+        name, schema = jsonview.json_schema(t)
+        m = FoxgloveMirror(name, schema, _json_convert, "jsonschema", "json")
+    _cache[key] = m
     return m
+
+
+def _json_convert(value: Any, t_ns: int) -> bytes:
+    return jsonview.encode(value)

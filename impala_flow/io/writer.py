@@ -68,13 +68,15 @@ class MissionWriter:
 
     ``codecs`` encodes every stream; ``metadata`` maps record names to string dicts
     ("how it was made": graph YAML, resolved parameters, plugin versions) and is written
-    before any data. With ``foxglove=True`` poses, trajectories, grids and point sets are
-    also written in Foxglove schemas on ``/foxglove/<topic>``.
+    before any data. With ``foxglove=True`` poses, trajectories, grids, point sets, objects,
+    detections and scans are also written in Foxglove schemas on ``/foxglove/<topic>``, and
+    with ``json_views=True`` (the recorder's default) every other stream as JSON there.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
                  compression: str = "zstd", chunk_size: int = 1 << 20,
                  metadata: dict[str, dict[str, str]] | None = None, foxglove: bool = True,
+                 json_views: bool = False,
                  flush_period_s: float | None = 1.0) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}, "
@@ -83,6 +85,7 @@ class MissionWriter:
         self.codecs = codecs
         self.compression = compression
         self.foxglove = foxglove
+        self.json_views = json_views
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
         self._topics: dict[str, _Topic] = {}
@@ -119,11 +122,11 @@ class MissionWriter:
         cid = self._mcap.register_channel(
             topic, codec.message_encoding, sid,
             {VERSION_KEY: str(codec.schema_version)})
-        mirror = mirror_for(t) if self.foxglove else None
+        mirror = mirror_for(t, self.json_views) if self.foxglove else None
         mid = 0
         if mirror is not None:
-            msid = self._schema_id(mirror.schema_name, "protobuf", mirror.schema_data)
-            mid = self._mcap.register_channel(foxglove_topic(topic), "protobuf", msid,
+            msid = self._schema_id(mirror.schema_name, mirror.schema_encoding, mirror.schema_data)
+            mid = self._mcap.register_channel(foxglove_topic(topic), mirror.message_encoding, msid,
                                               {MIRROR_KEY: topic})
         strict = codec.py_type is t and hasattr(t, "__impala_schema__")
         self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid,

@@ -22,57 +22,18 @@ graph the clock's ``speed`` paces the view (``impala-flow view FILE.mcap --speed
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import logging
-import math
 import sys
 from typing import Any
 
-import numpy as np
-
 from impala_flow.component import Component, Input, Param
 from impala_flow.io.foxglove import mirror_for
-from impala_flow.msgs import is_message
+from impala_flow.io.jsonview import encode as encode_json
+from impala_flow.io.jsonview import json_schema, to_json
 
-__all__ = ["FoxgloveBridge", "to_json"]
+__all__ = ["FoxgloveBridge", "to_json"]  # to_json: the JSON view (impala_flow.io.jsonview)
 
 log = logging.getLogger(__name__)
-
-
-def _plain(v: Any, max_array: int) -> Any:
-    if isinstance(v, np.ndarray):
-        if v.size <= max_array and v.dtype.kind in "biuf":
-            return [_finite(x) for x in v.tolist()] if v.ndim == 1 else _plain_nested(v.tolist())
-        return {"shape": list(v.shape), "dtype": v.dtype.str}
-    if isinstance(v, (np.floating, float)):
-        return _finite(float(v))
-    if isinstance(v, (np.integer, np.bool_)):
-        return v.item()
-    if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _plain(getattr(v, f.name), max_array) for f in dataclasses.fields(v)}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x, max_array) for x in v]
-    if isinstance(v, dict):
-        return {str(k): _plain(x, max_array) for k, x in v.items()}
-    if isinstance(v, bytes):
-        return {"bytes": len(v)}
-    return v
-
-
-def _plain_nested(x: Any) -> Any:
-    return [_plain_nested(y) for y in x] if isinstance(x, list) else _finite(x)
-
-
-def _finite(x: Any) -> Any:
-    """JSON has no NaN or infinity: they become null (never a silent 0)."""
-    return None if isinstance(x, float) and not math.isfinite(x) else x
-
-
-def to_json(value: Any, max_array: int = 64) -> dict[str, Any]:
-    """The JSON object a value is shown as (module doc)."""
-    out = _plain(value, max_array)
-    return out if isinstance(out, dict) else {"value": out}
 
 
 class FoxgloveBridge(Component):
@@ -115,11 +76,11 @@ class FoxgloveBridge(Component):
                                                     data=mirror.schema_data),
                             message_encoding="protobuf", context=self._context)
             return ch, mirror.convert
-        kind = type(value).__name__ if not is_message(value) else type(value).__impala_schema__[0]
-        ch = fx.Channel(topic, message_encoding="json", context=self._context,
-                        metadata={"impala_flow.type": kind})
+        name, schema = json_schema(type(value))
+        ch = fx.Channel(topic, schema=fx.Schema(name=name, encoding="jsonschema", data=schema),
+                        message_encoding="json", context=self._context)
         max_array = self.max_array
-        return ch, lambda v, t: json.dumps(to_json(v, max_array), separators=(",", ":")).encode()
+        return ch, lambda v, t: encode_json(v, max_array)
 
     def process(self, t: int) -> None:
         topic = self.trigger

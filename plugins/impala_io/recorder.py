@@ -31,7 +31,10 @@ class Recorder(Component):
     topics = Param(dict, default={}, doc="topic -> 'component.port' it records")
     compression = Param(str, default="zstd", choices=tuple(COMPRESSIONS),
                         doc="chunk compression")
-    foxglove = Param(bool, default=True, doc="also write poses, grids, points in Foxglove schemas")
+    foxglove = Param(bool, default=True, doc="also write poses, grids, points, objects, detections, scans "
+                     "in Foxglove schemas on /foxglove/<topic>")
+    json_views = Param(bool, default=True, doc="and every other stream as JSON there (generic MCAP tools, "
+                       "Foxglove's Plot panel; needs foxglove)")
     chunk_size = Param(int, default=1 << 20, ge=1024, doc="bytes per chunk before compression")
     maxsize = Param(int, default=4096, ge=1, doc="samples queued per input before blocking")
     flush_period_s = Param(float, default=1.0, ge=0.0,
@@ -60,7 +63,7 @@ class Recorder(Component):
         Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         self.writer = MissionWriter(self.path, codecs=self.codecs, flush_period_s=self.flush_period_s or None,
                                     compression=self.compression, chunk_size=self.chunk_size,
-                                    metadata=meta, foxglove=self.foxglove)
+                                    metadata=meta, foxglove=self.foxglove, json_views=self.json_views)
         self.recorded: dict[str, int] = {}
         for topic, port in self.inputs.items():  # declare typed streams now, even if they never emit
             declared = {src.decl.type for src in port.sources}

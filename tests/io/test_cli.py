@@ -99,4 +99,6 @@ def test_replay_finds_a_replayer_declared_in_an_included_file(mission: Path, tmp
         "record": {"path": str(out), "streams": [{"from": "mission.odo/speed", "topic": "odo/speed"}]}}))
     assert main(["replay", str(mission), str(graph), "--no-progress"]) == 0
     with open(out, "rb") as f:
-        assert sum(1 for _ in make_reader(f).iter_messages()) == 100  # every recorded speed, replayed
+        topics = [ch.topic for _, ch, _ in make_reader(f).iter_messages()]
+    # every recorded speed, replayed, and its JSON view for generic tools
+    assert topics.count("odo/speed") == 100 and topics.count("/foxglove/odo/speed") == 100

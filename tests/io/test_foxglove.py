@@ -134,3 +134,64 @@ def test_radar_and_objects_mirrors(tmp_path: Path, registry: CodecRegistry) -> N
     assert math.isclose(2 * math.atan2(q.z, q.w), math.atan2(4.0, 3.0))  # along the velocity
     assert (moving.cubes[0].pose.position.x, moving.cubes[0].pose.position.y) == (1.0, 2.0)
     assert not still.arrows and still.texts[0].text == "id 12  0.0 m/s"
+
+
+def _generic_decoders(schema, channel):
+    """A decoder built from the file alone (no impala-flow): protobuf from the stored
+    FileDescriptorSet with Google's library, JSON validated against the stored JSON Schema."""
+    import json
+
+    import jsonschema
+    from google.protobuf import descriptor_pool, message_factory
+
+    if channel.message_encoding == "protobuf":
+        pool = descriptor_pool.DescriptorPool()
+        for fd in FileDescriptorSet.FromString(schema.data).file:
+            pool.Add(fd)
+        cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
+        return cls.FromString
+    assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
+    validator = jsonschema.Draft202012Validator(json.loads(schema.data))
+
+    def decode(data: bytes) -> dict:
+        value = json.loads(data)
+        validator.validate(value)
+        return value
+
+    return decode
+
+
+def test_every_stream_of_a_recorded_mission_has_a_generic_view(tmp_path: Path) -> None:
+    """Simulated and processed missions (recorded by io.Recorder): every recorded topic has a
+    /foxglove/ channel that decodes without impala-flow, one message per recorded message, and
+    the scalar values are exactly the recorded ones."""
+    from impala_flow.cli import main
+    from impala_flow.io import MissionReader
+
+    mission = tmp_path / "m.mcap"
+    assert main(["simulate", "beynes", "-o", str(mission), "--duration", "3s", "--no-progress"]) == 0
+    graph = Path(__file__).resolve().parents[2] / "graphs" / "rslam.yaml"
+    out = tmp_path / "rslam"
+    assert main(["run", str(graph), "--var", f"mission={mission}", "--var", f"out={out}", "--no-progress"]) == 0
+    processed = sorted(out.glob("*.mcap"))
+    assert processed
+    for path in [mission, *processed]:
+        native, views = {}, {}
+        with open(path, "rb") as f:
+            reader = make_reader(f)
+            decoders = {}
+            for schema, channel, m in reader.iter_messages():
+                if channel.topic.startswith("/foxglove/"):
+                    dec = decoders.setdefault(channel.id, _generic_decoders(schema, channel))
+                    views.setdefault(channel.topic[len("/foxglove"):].lstrip("/"), []).append((m.log_time, dec(m.data)))
+                else:
+                    native[channel.topic] = native.get(channel.topic, 0) + 1
+        assert set(views) == set(native), path
+        assert {t: len(v) for t, v in views.items()} == native, path
+        with MissionReader(path) as r:
+            for rec in r.messages():
+                fields = getattr(rec.data, "__dataclass_fields__", {})
+                for name in ("speed_mps", "yaw_rate_radps"):
+                    if name in fields:
+                        t, view = next(v for v in views[rec.topic] if v[0] == rec.t_ns)
+                        assert view[name] == getattr(rec.data, name)

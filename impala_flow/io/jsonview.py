@@ -1,0 +1,116 @@
+"""Readable JSON views of any recorded value, for generic MCAP tools and Foxglove's Plot panel.
+
+A stream whose type has no Foxglove schema (speeds, yaw rates, twists, scalars, detections
+counts, any plugin's message) gets a mirror channel ``/foxglove/<topic>`` with message
+encoding ``json`` and a JSON Schema (schema encoding ``jsonschema``) generated from the
+message dataclass, so any MCAP tool decodes it without impala-flow:
+
+- message fields by name; ``int``/``float``/``bool``/``str`` as JSON numbers, booleans, strings
+  (a float's JSON text reads back to the same double; NaN and infinities become ``null``);
+- numeric arrays of at most ``max_array`` values as (nested) lists; larger ones, and arrays
+  of other kinds, as ``{"shape": [...], "dtype": "<f4"}`` (a radar beam stays a few hundred
+  bytes: the exact values are on the native channel);
+- a nested message as an object; a plain payload as ``{"value": ...}``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import types
+import typing
+from typing import Any
+
+import numpy as np
+
+from ..msgs import is_message, schema_name
+
+__all__ = ["to_json", "json_schema", "MAX_ARRAY"]
+
+#: arrays up to this many values are written in full
+MAX_ARRAY = 64
+
+
+def _finite(x: Any) -> Any:
+    return None if isinstance(x, float) and not math.isfinite(x) else x
+
+
+def _nested(x: Any) -> Any:
+    return [_nested(y) for y in x] if isinstance(x, list) else _finite(x)
+
+
+def _plain(v: Any, max_array: int) -> Any:
+    if isinstance(v, np.ndarray):
+        if v.size <= max_array and v.dtype.kind in "biuf":
+            return _nested(v.tolist())
+        return {"shape": list(v.shape), "dtype": v.dtype.str}
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (float, np.floating)):
+        return _finite(float(v))
+    if isinstance(v, np.integer):
+        return int(v)
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        return {f.name: _plain(getattr(v, f.name), max_array) for f in dataclasses.fields(v)}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x, max_array) for x in v]
+    if isinstance(v, dict):
+        return {str(k): _plain(x, max_array) for k, x in v.items()}
+    if isinstance(v, bytes):
+        return {"bytes": len(v)}
+    return v
+
+
+def to_json(value: Any, max_array: int = MAX_ARRAY) -> dict[str, Any]:
+    """The JSON object ``value`` is shown as (module doc)."""
+    out = _plain(value, max_array)
+    return out if isinstance(out, dict) else {"value": out}
+
+
+def encode(value: Any, max_array: int = MAX_ARRAY) -> bytes:
+    return json.dumps(to_json(value, max_array), separators=(",", ":"), allow_nan=False).encode()
+
+
+_NUMBER = {"type": ["number", "null"]}
+_ARRAY = {"anyOf": [{"type": "array"}, {"type": "object", "properties": {
+    "shape": {"type": "array", "items": {"type": "integer"}}, "dtype": {"type": "string"}}}]}
+
+
+def _field_schema(tp: Any) -> dict[str, Any]:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        inner = [a for a in typing.get_args(tp) if a is not type(None)]
+        return {"anyOf": [_field_schema(a) for a in inner] + [{"type": "null"}]}
+    if tp is bool:
+        return {"type": "boolean"}
+    if tp is int:
+        return {"type": "integer"}
+    if tp is float:
+        return _NUMBER
+    if tp is str:
+        return {"type": "string"}
+    if tp is np.ndarray:
+        return _ARRAY
+    if isinstance(tp, type) and is_message(tp):
+        return _object_schema(tp)
+    return {}
+
+
+def _object_schema(cls: type) -> dict[str, Any]:
+    hints = typing.get_type_hints(cls)
+    fields = dataclasses.fields(cls)
+    return {"type": "object", "title": schema_name(cls),
+            "properties": {f.name: _field_schema(hints.get(f.name)) for f in fields},
+            "required": [f.name for f in fields]}
+
+
+def json_schema(t: type) -> tuple[str, bytes]:
+    """(schema name, JSON Schema bytes) of the JSON view of values of type ``t``."""
+    if is_message(t):
+        return schema_name(t), json.dumps(_object_schema(t), sort_keys=True).encode()
+    name = "impala.builtin." + getattr(t, "__name__", "value")
+    value: dict[str, Any] = {bool: {"type": "boolean"}, int: {"type": "integer"}, float: _NUMBER,
+                             str: {"type": "string"}, np.ndarray: _ARRAY}.get(t, {})
+    doc = {"type": "object", "title": name, "properties": {"value": value}}
+    return name, json.dumps(doc, sort_keys=True).encode()
