@@ -40,6 +40,8 @@ import numpy as np
 from foxglove_schemas_protobuf.ArrowPrimitive_pb2 import ArrowPrimitive
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.Grid_pb2 import Grid as FxGrid
 from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
@@ -62,7 +64,7 @@ from .. import msgs
 from . import jsonview
 
 __all__ = ["FoxgloveMirror", "mirror_for", "foxglove_topic", "file_descriptor_set",
-           "MIRROR_KEY", "FOXGLOVE_PREFIX"]
+           "MIRROR_KEY", "FOXGLOVE_PREFIX", "TF_TOPIC", "frame_transforms"]
 
 FOXGLOVE_PREFIX = "/foxglove/"
 MIRROR_KEY = "impala_flow.mirror_of"
@@ -276,6 +278,26 @@ def mirror_for(t: type, json_views: bool = False) -> FoxgloveMirror | None:
         m = FoxgloveMirror(name, schema, _json_convert, "jsonschema", "json")
     _cache[key] = m
     return m
+
+
+#: topic of the frame tree (``foxglove.FrameTransforms``), next to the mirrors
+TF_TOPIC = "/tf"
+
+
+def frame_transforms(t_ns: int, transforms: list[tuple[str, str, float, float, float, float]]) -> bytes:
+    """``foxglove.FrameTransforms`` of planar transforms (parent, child, x, y, z, yaw): the pose
+    of ``child`` in ``parent``, stamped ``t_ns``."""
+    stamp = _stamp(t_ns)
+    out = []
+    for parent, child, x, y, z, yaw in transforms:
+        p = _pose(x, y, yaw)
+        out.append(FrameTransform(timestamp=stamp, parent_frame_id=parent, child_frame_id=child,
+                                  translation=Vector3(x=float(x), y=float(y), z=float(z)),
+                                  rotation=p.orientation))
+    return FrameTransforms(transforms=out).SerializeToString()
+
+
+TF_SCHEMA = (FrameTransforms.DESCRIPTOR.full_name, file_descriptor_set(FrameTransforms))
 
 
 def _json_convert(value: Any, t_ns: int) -> bytes:

@@ -19,7 +19,7 @@ from typing import Any
 from ._mcapwriter import McapWriter
 from .codec import Codec
 from .errors import CodecError
-from .foxglove import MIRROR_KEY, FoxgloveMirror, foxglove_topic, mirror_for
+from .foxglove import MIRROR_KEY, TF_SCHEMA, TF_TOPIC, FoxgloveMirror, foxglove_topic, frame_transforms, mirror_for
 from .registry import VERSION_KEY, CodecRegistry
 
 __all__ = ["MissionWriter", "COMPRESSIONS"]
@@ -89,6 +89,7 @@ class MissionWriter:
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
         self._topics: dict[str, _Topic] = {}
+        self._tf_id: int | None = None
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
         self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
@@ -168,6 +169,15 @@ class MissionWriter:
             now = time.monotonic()
             if now - self._last_flush >= self._flush_period_s:
                 self.flush()
+
+    def write_transforms(self, t_ns: int, transforms: list[tuple[str, str, float, float, float, float]]) -> None:
+        """Write planar frame transforms (parent, child, x, y, z, yaw) on the ``/tf`` channel
+        (``foxglove.FrameTransforms``; readers of impala types skip it like the mirrors)."""
+        if self._tf_id is None:
+            sid = self._schema_id(TF_SCHEMA[0], "protobuf", TF_SCHEMA[1])
+            self._tf_id = self._mcap.register_channel(TF_TOPIC, "protobuf", sid, {MIRROR_KEY: "frames"})
+        pb = frame_transforms(t_ns, transforms)
+        self._mcap.add_message(self._tf_id, t_ns, [pb], len(pb), 0)
 
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress

@@ -10,11 +10,14 @@ import yaml
 
 from impala_flow.component import Component, Input, Output, Param
 from impala_flow.io import COMPRESSIONS, MissionWriter
-from impala_flow.msgs import is_message
+from impala_flow.msgs import Pose2D, is_message
 
 from ._codecs import run_codecs
 
-__all__ = ["Recorder"]
+__all__ = ["Recorder", "VEHICLE_POSES"]
+
+#: pose topics that place the vehicle frame, best first (estimates before truth)
+VEHICLE_POSES = ("slam/pose", "ekf/pose", "odometry/pose", "deadreckoning/pose", "gps/pose", "truth/pose")
 
 
 class Recorder(Component):
@@ -40,6 +43,10 @@ class Recorder(Component):
     flush_period_s = Param(float, default=1.0, ge=0.0,
                            doc="also close a chunk every this many wall seconds (crash safety of slow "
                            "streams); 0: by size only, so the same samples give the same bytes")
+    frames = Param(dict, default={}, doc="pose topic -> the frame it places (child of the pose's own frame) "
+                   "on /tf; empty: the first recorded of " + ", ".join(VEHICLE_POSES) + " places 'vehicle', "
+                   "every other pose topic a frame of its own name")
+    radar_mount = Param(list, default=[0.0, 0.0, 0.0, 0.0], doc="radar in the vehicle frame: x_m, y_m, z_m, yaw_rad")
     graph = Param(dict, default={}, doc="resolved graph stored in the metadata")
     plugins = Param(dict, default={}, doc="plugin name -> version, stored in the metadata")
 
@@ -65,6 +72,9 @@ class Recorder(Component):
                                     compression=self.compression, chunk_size=self.chunk_size,
                                     metadata=meta, foxglove=self.foxglove, json_views=self.json_views)
         self.recorded: dict[str, int] = {}
+        self._frames = self._frame_children()
+        if len(self.radar_mount) != 4 or not all(isinstance(v, (int, float)) for v in self.radar_mount):
+            raise ValueError(f"radar_mount {self.radar_mount!r}: must be [x_m, y_m, z_m, yaw_rad]")
         for topic, port in self.inputs.items():  # declare typed streams now, even if they never emit
             declared = {src.decl.type for src in port.sources}
             if len(declared) == 1 and is_message(t := declared.pop()):
@@ -76,6 +86,17 @@ class Recorder(Component):
         self.writer.add_topic(topic, t_data)
         self.recorded[topic] = 0
 
+    def _frame_children(self) -> dict[str, str]:
+        """Pose topic -> frame it places on /tf (module param ``frames``)."""
+        if self.frames:
+            return {str(k): str(v) for k, v in self.frames.items()}
+        if not self.foxglove:
+            return {}
+        poses = [t for t, port in self.inputs.items()
+                 if any(src.decl.type is Pose2D for src in port.sources)]
+        vehicle = next((t for t in VEHICLE_POSES if t in poses), None)
+        return {t: ("vehicle" if t == vehicle else t) for t in poses}
+
     def process(self, t: int) -> None:
         topic = self.trigger
         s = self.inputs[topic].take_sample()
@@ -83,6 +104,14 @@ class Recorder(Component):
             self._add_topic(topic, type(s.data))
         self.writer.write(topic, s.timestamp, s.data, s.seq)
         self.recorded[topic] += 1
+        child = self._frames.get(topic)
+        if child is not None and isinstance(s.data, Pose2D):
+            p = s.data
+            tf = [(p.frame, child, p.x_m, p.y_m, 0.0, p.theta_rad)]
+            if child == "vehicle":
+                x, y, z, yaw = self.radar_mount
+                tf.append(("vehicle", "radar", x, y, z, yaw))
+            self.writer.write_transforms(s.timestamp, tf)
 
     def stop(self) -> None:
         writer = getattr(self, "writer", None)

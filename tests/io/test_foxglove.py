@@ -181,7 +181,10 @@ def test_every_stream_of_a_recorded_mission_has_a_generic_view(tmp_path: Path) -
             reader = make_reader(f)
             decoders = {}
             for schema, channel, m in reader.iter_messages():
-                if channel.topic.startswith("/foxglove/"):
+                if channel.topic == "/tf":  # the frame tree: a view of the poses (test below)
+                    assert channel.message_encoding == "protobuf"
+                    _generic_decoders(schema, channel)(m.data)
+                elif channel.topic.startswith("/foxglove/"):
                     dec = decoders.setdefault(channel.id, _generic_decoders(schema, channel))
                     views.setdefault(channel.topic[len("/foxglove"):].lstrip("/"), []).append((m.log_time, dec(m.data)))
                 else:
@@ -195,3 +198,30 @@ def test_every_stream_of_a_recorded_mission_has_a_generic_view(tmp_path: Path) -
                     if name in fields:
                         t, view = next(v for v in views[rec.topic] if v[0] == rec.t_ns)
                         assert view[name] == getattr(rec.data, name)
+
+
+def test_frame_transforms_place_the_vehicle_and_the_radar(tmp_path: Path) -> None:
+    """/tf (foxglove.FrameTransforms): each recorded pose places its frame in the pose's own
+    frame (the best vehicle pose places 'vehicle', the radar rides on it), equal to the pose."""
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+    from impala_flow.cli import main
+    from impala_flow.io import MissionReader
+
+    mission = tmp_path / "m.mcap"
+    assert main(["simulate", "beynes", "-o", str(mission), "--duration", "2s", "--no-progress"]) == 0
+    with MissionReader(mission) as r:
+        poses = {m.t_ns: m.data for m in r.messages(["gps/pose"])}
+        assert "/tf" not in r.topics  # a view, like the mirrors: not a stream to replay
+    n = 0
+    with open(mission, "rb") as f:
+        for schema, channel, m in make_reader(f).iter_messages(topics=["/tf"]):
+            assert schema.name == "foxglove.FrameTransforms" and channel.message_encoding == "protobuf"
+            vehicle, radar = FrameTransforms.FromString(m.data).transforms
+            p = poses[m.log_time]
+            assert (vehicle.parent_frame_id, vehicle.child_frame_id) == (p.frame, "vehicle")
+            assert (vehicle.translation.x, vehicle.translation.y) == (p.x_m, p.y_m)
+            assert math.isclose(2 * math.atan2(vehicle.rotation.z, vehicle.rotation.w), p.theta_rad, abs_tol=1e-12)
+            assert (radar.parent_frame_id, radar.child_frame_id) == ("vehicle", "radar")
+            n += 1
+    assert n == len(poses) == 20
