@@ -13,17 +13,19 @@ from .sensors import (
     RadarDetections,
     RadarScan,
     Speed,
+    TrackExistence,
     YawRate,
 )
 
 BUILTIN_TYPES: tuple[type, ...] = (
     Scalar, Pose2D, Twist2D, Trajectory2D, Grid, Points2D,
     RadarConfig, RadarBeam, RadarScan, RadarDetections, Speed, YawRate, ObjectStates,
+    TrackExistence,
 )
 
 __all__ = [
     "message", "is_message", "schema_name", "schema_version", "freeze", "wrap_angle",
     "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "Grid", "Points2D",
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
-    "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES",
+    "TrackExistence", "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES",
 ]

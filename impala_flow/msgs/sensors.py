@@ -10,7 +10,7 @@ from ._base import message
 
 __all__ = [
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
-    "SPEED_OF_LIGHT_MPS",
+    "TrackExistence", "SPEED_OF_LIGHT_MPS",
 ]
 
 SPEED_OF_LIGHT_MPS = 299_792_458.0
@@ -148,4 +148,17 @@ class ObjectStates:
     xy_m: np.ndarray
     v_xy_mps: np.ndarray
     cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    frame: str = "map"
+
+
+@message("impala.TrackExistence", version=1)
+class TrackExistence:
+    """Every live track of a tracker at one time, tentative or confirmed (seed 1 Fig. 18):
+    ``probability`` is each track's existence probability, ``confirmed`` whether it passed
+    the confirmation threshold (confirmed tracks are the ones published as ObjectStates)."""
+
+    ids: np.ndarray
+    xy_m: np.ndarray
+    probability: np.ndarray
+    confirmed: np.ndarray
     frame: str = "map"

@@ -14,8 +14,10 @@ from impala_flow.plugins import hookimpl
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     from .evaluator import TrajectoryEvaluator
+    from .tracking import TrackingEvaluator
 
     registry.add_component(TrajectoryEvaluator)
+    registry.add_component(TrackingEvaluator)
 
 
 @hookimpl
