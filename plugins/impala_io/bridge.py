@@ -2,16 +2,16 @@
 
 The server is the ``foxglove-sdk`` package's (subprotocol ``foxglove.sdk.v1``, the successor
 of ``foxglove.websocket.v1`` with the same operations; the Foxglove app speaks both): open
-Foxglove, "Open connection", "Foxglove WebSocket", ``ws://HOST:PORT``. One input per stream, named after its topic
-(``topics``: topic -> the ``component.port`` it shows, as for ``io.Recorder``). Each sample
-is sent stamped with its own time (``log_time`` = the sample's int ns):
+Foxglove, "Open connection", "Foxglove WebSocket", ``ws://HOST:PORT``. One input per stream,
+named after its topic (``topics``: topic -> the ``component.port`` it shows, as for
+``io.Recorder``). Each sample is sent stamped with its own time (``log_time`` = its int ns),
+the same way a recording shows it (:mod:`impala_flow.io.foxglove`):
 
-- poses, trajectories, grids, point sets and object states in Foxglove's protobuf schemas
-  (the same converters as the recordings' ``/foxglove/`` mirrors, so the 3D panel shows them);
-- every other value as JSON (``message_encoding: json``): message fields by name, arrays up
-  to ``max_array`` values as lists (larger ones are replaced by ``{"shape": [...], "dtype":
-  ...}``: a radar beam stays a few hundred bytes), plain numbers as ``{"value": x}``, so the
-  Plot panel plots any scalar stream (speeds, yaw rates, counters).
+- poses, trajectories, grids, point sets, objects, detections and scans in Foxglove's
+  protobuf schemas (the 3D, Image and Plot panels show them);
+- every other value as its JSON view with a JSON Schema (:mod:`impala_flow.io.jsonview`):
+  fields by name, arrays over ``max_array`` values as their shape, plain numbers as
+  ``{"value": x}``, so the Plot panel plots any scalar stream (speeds, yaw rates, counters).
 
 The graph never waits for a client: ``Channel.log`` hands the message to the SDK's own
 sender, which keeps at most ``backlog`` messages per client and drops the oldest beyond
