@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from impala_flow.component import Component, Input, Param
-from impala_flow.msgs import Grid, Pose2D
+from impala_flow.msgs import Grid, Pose2D, Twist2D
 
-from .metrics import TrajectoryMetrics, trajectory_metrics
+from .metrics import TrajectoryMetrics, TwistErrors, trajectory_metrics, twist_errors
 from .report import find_gaps, format_metrics, write_report
 
 __all__ = ["TrajectoryEvaluator"]
@@ -36,6 +36,8 @@ class TrajectoryEvaluator(Component):
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
     baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a second estimate (dead reckoning)")
     map = Input(Grid, policy="sampling", required=False, doc="the radar map drawn under the trajectories")
+    twist = Input(Twist2D, maxsize=1 << 20, required=False,
+                  doc="estimated speed and yaw rate: errors against the truth's over twist_window_s")
 
     report = Param(str, default="", path="write_dir", doc="report folder ('' = metrics only, no files)")
     align = Param(str, default="rigid", choices=("rigid", "first"), doc="alignment before the ATE")
@@ -44,11 +46,15 @@ class TrajectoryEvaluator(Component):
     baseline_title = Param(str, default="dead reckoning", doc="name of the baseline in the figures")
     pairs = Param(bool, default=False,
                   doc="report every consecutive pair's relative-motion error (metrics.json, pair_errors.png)")
+    twist_window_s = Param(float, default=1.0, gt=0,
+                           doc="truth speed and yaw rate: central difference of the truth over this window "
+                               "(the estimator's own: one turn for a two-turn method)")
     map_scale = Param(str, default="db", choices=("db", "power"),
                       doc="unit of the map's values: dB (slam.RSlam's map) or linear power")
 
     def start(self) -> None:
-        self.samples: dict[str, list[tuple[int, Pose2D]]] = {"estimate": [], "truth": [], "baseline": []}
+        self.samples: dict[str, list] = {"estimate": [], "truth": [], "baseline": [], "twist": []}
+        self.twist_errors: TwistErrors | None = None
         self.figures: dict = {}
         self.metrics: TrajectoryMetrics | None = None
         self.baseline_metrics: TrajectoryMetrics | None = None
@@ -76,6 +82,15 @@ class TrajectoryEvaluator(Component):
         if len(base) >= 2:
             self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m)
             self.figures.update(self.baseline_metrics.figures("baseline_"))
+        tw = self.samples["twist"]
+        if tw:
+            t = np.array([s[0] for s in tw], np.int64)
+            order = np.argsort(t, kind="stable")
+            v = np.array([s[1].speed_mps for s in tw], float)[order]
+            w = np.array([s[1].yaw_rate_radps for s in tw], float)[order]
+            self.twist_errors = twist_errors(t[order], v, w, tt, txyt, self.twist_window_s)
+            if len(self.twist_errors.t_ns):
+                self.figures.update(self.twist_errors.figures())
         if self.pairs:
             self.figures["pairs"] = self.metrics.pairs.rows()
             if self.baseline_metrics is not None:
@@ -94,9 +109,11 @@ class TrajectoryEvaluator(Component):
         if self.report:
             write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
                          (m.rotation, m.translation_m), self.title, self.map_scale, self.baseline_title,
-                         pairs_figure=self.pairs)
+                         pairs_figure=self.pairs, twist=self.twist_errors)
 
     def summary(self) -> dict:
-        keys = ("ate_rmse_m", "drift_pct", "baseline_ate_rmse_m", "baseline_drift_pct",
-                "pair_trans_err_mean_m", "pair_rot_err_mean_deg", "gap_total_s")
+        keys = ("ate_rmse_m", "drift_pct", "rel_err_pct", "baseline_ate_rmse_m", "baseline_drift_pct",
+                "pair_trans_err_mean_m", "pair_rot_err_mean_deg", "gap_total_s", "speed_err_mean_mps",
+                "speed_err_std_mps", "yaw_rate_err_mean_dps", "yaw_rate_err_std_dps", "final_error_x_m",
+                "final_error_y_m", "final_rot_err_rad")
         return {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}

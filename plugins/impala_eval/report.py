@@ -7,6 +7,9 @@
     error_vs_distance.png   position error along the path (Fig. 12), baseline beside
     trajectory_map.png  estimated and true trajectories over the radar map (Fig. 10b)
     map.png             the radar map alone
+    pair_errors.png     with pairs: every consecutive pair's relative-motion error
+    twist_errors.png    with an estimated twist: speed and yaw-rate errors against time, the true
+                        speed and yaw rate above them
 
 ``format_metrics`` / ``load_metrics`` let a command print a report's figures.
 """
@@ -22,7 +25,7 @@ import numpy as np
 
 from impala_flow.msgs import Grid
 
-from .metrics import TrajectoryMetrics
+from .metrics import TrajectoryMetrics, TwistErrors
 
 __all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps"]
 
@@ -93,7 +96,8 @@ def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = 
 def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
                  baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
                  transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM",
-                 map_scale: str = "db", baseline_title: str = "dead reckoning", pairs_figure: bool = False) -> Path:
+                 map_scale: str = "db", baseline_title: str = "dead reckoning", pairs_figure: bool = False,
+                 twist: TwistErrors | None = None) -> Path:
     """Write the report folder (see the module doc); return its path. ``map_scale``: the
     map's values are dB (R-SLAM's map) or linear power."""
     folder = Path(folder)
@@ -149,6 +153,8 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
 
     if pairs_figure and len(est.pairs.t_ns):
         _pairs_figure(folder / "pair_errors.png", est, baseline, title, baseline_title)
+    if twist is not None and len(twist.t_ns):
+        _twist_figure(folder / "twist_errors.png", twist, title)
     if radar_map is not None:
         fig = _figure(7.5, 7.0)
         ax = fig.add_subplot()
@@ -158,6 +164,30 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
                title=f"Radar map ({radar_map.cell_m:.2f} m cells, eq. 6)")
         fig.savefig(folder / "map.png")
     return folder
+
+
+def _twist_figure(path: Path, tw: TwistErrors, title: str) -> None:
+    """True speed and yaw rate (top), the estimate's errors against time (bottom)."""
+    t = (tw.t_ns - tw.t_ns[0]) * 1e-9
+    f = tw.figures()
+    fig = _figure(9.0, 6.0)
+    (a, b), (c, d) = fig.subplots(2, 2, sharex=True)
+    a.plot(t, tw.truth_speed_mps, color=_TRUTH, lw=1.2)
+    a.set(ylabel="true speed (m/s)", title="speed")
+    b.plot(t, tw.truth_yaw_rate_dps, color=_TRUTH, lw=1.2)
+    b.set(ylabel="true yaw rate (deg/s)", title="yaw rate")
+    c.plot(t, tw.speed_err_mps, ".", color=_EST, ms=3)
+    c.set(xlabel="time (s)", ylabel="error (m/s)",
+          title=f"mean {f['speed_err_mean_mps']:+.3f}, std {f['speed_err_std_mps']:.3f} m/s")
+    d.plot(t, tw.yaw_rate_err_dps, ".", color=_EST, ms=3)
+    d.set(xlabel="time (s)", ylabel="error (deg/s)",
+          title=f"mean {f['yaw_rate_err_mean_dps']:+.3f}, std {f['yaw_rate_err_std_dps']:.3f} deg/s")
+    for ax in (a, b, c, d):
+        ax.grid(alpha=0.3)
+    for ax in (c, d):
+        ax.axhline(0.0, color="k", lw=0.6)
+    fig.suptitle(f"{title}: estimate - truth (truth over {tw.window_s:g} s windows)")
+    fig.savefig(path)
 
 
 def _pairs_figure(path: Path, est: TrajectoryMetrics, baseline: TrajectoryMetrics | None, title: str,

@@ -13,7 +13,9 @@ from impala_flow.plugins import hookimpl
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     from .dead_reckoning import DeadReckoning
+    from .odometry import DistortionOdometry
     from .rslam import RSlam
 
     registry.add_component(RSlam)
     registry.add_component(DeadReckoning)
+    registry.add_component(DistortionOdometry)

@@ -1,0 +1,386 @@
+"""Radar-only odometry from scan distortion (seed 1 §4.2): beams in, speed, yaw rate, pose out.
+
+Per turn (:class:`DistortionCore`):
+
+1. echoes of the turn (:func:`~.distortion.extract_echoes`, both ramps of a Doppler radar);
+2. the Kalman filter over (V, a, w) (filterpy; a the longitudinal acceleration, so the
+   braking into a roundabout is predicted) predicts the velocities at the boundary between
+   the previous turn and this one;
+3. the two turns' echoes are made to coincide from that prediction
+   (:func:`~.distortion.estimate_velocity`). When the result is not trusted (too few pairs,
+   far fewer than the last turns had, or inconsistent with the prediction) a grid search
+   around the prediction (the whole speed and yaw-rate range on the first turn) gives
+   another start and the better of the two by coincidences is kept;
+4. the filter is updated with it (a measurement more than ``reset_nis`` away in normalised
+   innovation while well supported by coincidences re-initialises the filter: a sudden
+   stop); without a measurement it only predicts: the covariance grows and the turn
+   counts as ``degraded``;
+5. the pose is integrated along the arc of the mean velocities between boundaries.
+
+The velocity estimated from two turns is their mean over the time the same echoes were seen
+twice, centred on the boundary: outputs are stamped at the first beam of the newer turn (one
+turn of latency, as any two-turn method).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from impala_flow.component import Component, Input, Output, Param, Periodic
+from impala_flow.msgs import Grid, Pose2D, RadarBeam, Scalar, Twist2D
+
+from .dead_reckoning import arc_step
+from .distortion import (
+    Echoes,
+    EchoParams,
+    VelocityEstimate,
+    arc_poses,
+    doppler_beta_s,
+    estimate_velocity,
+    extract_echoes,
+    search_velocity,
+)
+from .tilemap import TileMap
+
+__all__ = ["DistortionConfig", "DistortionCore", "DistortionOdometry", "TurnResult"]
+
+
+@dataclass
+class DistortionConfig:
+    echoes: EchoParams = EchoParams()
+    doppler: bool = True  # remove the range-Doppler coupling with the estimated speed
+    max_speed_mps: float = 25.0
+    max_reverse_mps: float = 3.0
+    max_yaw_rate_radps: float = math.radians(30.0)
+    gate_m: float = 1.0  # first association gate (halved at each iteration)
+    sigma_range_m: float = 0.0  # 0: half the range resolution c / (2 dF)
+    sigma_azimuth_rad: float = math.radians(0.3)
+    min_pairs: int = 12
+    accel_std_mps2: float = 1.0  # white jerk of the (V, a) model, per second
+    yaw_accel_std_radps2: float = math.radians(3.0)
+    reset_nis: float = 25.0
+    search_v_step: float = 0.25
+    search_w_step: float = math.radians(1.0)
+    search_gate_m: float = 0.6
+    accept_ratio: float = 0.85  # the prediction's result is kept above this share of the recent coincidences
+    lost_ratio: float = 0.6  # best coincidences near the prediction below this share of the recent ones: search all
+
+
+@dataclass
+class TurnResult:
+    t_s: float  # boundary time (first beam of the newer turn), s since the first beam
+    v_mps: float
+    w_radps: float
+    cov: np.ndarray  # 2x2 over (v, w), after the filter
+    pose: tuple[float, float, float]
+    measured: VelocityEstimate | None
+    degraded: bool
+    searched: bool
+
+
+class DistortionCore:
+    """State of one odometry run on plain values (used by the component, tests and bench)."""
+
+    def __init__(self, config: DistortionConfig | None = None, pose0: tuple[float, float, float] = (0.0, 0.0, 0.0)):
+        self.cfg = config or DistortionConfig()
+        self.prev: Echoes | None = None
+        self.prev_t0: float | None = None
+        self.kf: KalmanFilter | None = None
+        self.t_kf: float | None = None
+        self.pose = pose0
+        self.last_vw: tuple[float, float] | None = None
+        self.recent_scores: list[int] = []
+        self.turns = self.degraded = self.searches = self.wide_searches = self.resets = 0
+        self.seconds = 0.0
+
+    def _sigma_r(self, config) -> float:
+        return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
+
+    def _new_filter(self, v: float, w: float, cov: np.ndarray) -> KalmanFilter:
+        kf = KalmanFilter(dim_x=3, dim_z=2)
+        kf.x = np.array([v, 0.0, w])
+        kf.P = np.diag([cov[0, 0], self.cfg.accel_std_mps2 ** 2, cov[1, 1]])
+        kf.H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+        return kf
+
+    def _predict(self, t_s: float) -> None:
+        dt = t_s - self.t_kf
+        c = self.cfg
+        self.kf.F = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        qj = c.accel_std_mps2 ** 2  # white jerk spectral density (m^2/s^5 per s)
+        self.kf.Q = np.array([[qj * dt ** 3 / 3, qj * dt ** 2 / 2, 0.0],
+                              [qj * dt ** 2 / 2, qj * dt, 0.0],
+                              [0.0, 0.0, c.yaw_accel_std_radps2 ** 2 * dt]])
+        self.kf.predict()
+        self.t_kf = t_s
+
+    def step(self, t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, down: np.ndarray | None,
+             config) -> TurnResult | None:
+        """One complete turn (beam times in s from a fixed origin). None for the first turn."""
+        t0 = time.perf_counter()
+        c = self.cfg
+        echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
+        t_ref = float(np.min(t_s))
+        prev, self.prev = self.prev, echoes
+        if prev is None:
+            self.seconds += time.perf_counter() - t0
+            return None
+        beta = doppler_beta_s(config) if c.doppler else 0.0
+        sr = self._sigma_r(config)
+        kw = dict(beta_s=beta, gate_m=c.gate_m, sigma_range_m=sr, sigma_azimuth_rad=c.sigma_azimuth_rad,
+                  min_pairs=c.min_pairs)
+        around = None
+        if self.kf is not None:
+            self._predict(t_ref)
+            around = (float(self.kf.x[0]), float(self.kf.x[2]))
+        acc = 0.0 if self.kf is None else float(self.kf.x[1])
+        est, searched = None, False
+        if around is not None and self.recent_scores:
+            # the prediction first: kept when its result coincides as well as the last turns did
+            est = estimate_velocity(prev, echoes, around[0], around[1], t_ref, accel_mps2=acc, **kw)
+            if est is not None:
+                score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc)
+                if score >= c.accept_ratio * float(np.median(self.recent_scores)):
+                    self.recent_scores = (self.recent_scores + [score])[-8:]
+                else:
+                    est = None
+        if est is None:
+            searched = True
+            start = self._search(prev, echoes, t_ref, beta, around, acc)
+            if around is not None and (start is None or (self.recent_scores and start[2] < c.lost_ratio * float(
+                    np.median(self.recent_scores)))):
+                # few coincidences near the prediction: the filter may be lost; search everything
+                wide = self._search(prev, echoes, t_ref, beta, None, acc)
+                if wide is not None and (start is None or wide[2] > start[2]):
+                    start = wide
+                    self.wide_searches += 1
+            if start is not None:
+                self.recent_scores = (self.recent_scores + [start[2]])[-8:]
+                est = estimate_velocity(prev, echoes, start[0], start[1], t_ref, accel_mps2=acc, **kw)
+        self.searches += searched
+        degraded = est is None
+        if est is not None:
+            if self.kf is None:
+                self.kf = self._new_filter(est.v_mps, est.w_radps, est.cov)
+                self.t_kf = t_ref
+            else:
+                self._update(est)
+        elif self.kf is None:
+            self.degraded += 1
+            self.turns += 1
+            self.seconds += time.perf_counter() - t0
+            return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched)
+        self.degraded += degraded
+        v, w = float(self.kf.x[0]), float(self.kf.x[2])
+        P = self.kf.P
+        cov = np.array([[P[0, 0], P[0, 2]], [P[2, 0], P[2, 2]]])
+        if self.last_vw is not None and self.prev_t0 is not None:
+            vm, wm = 0.5 * (self.last_vw[0] + v), 0.5 * (self.last_vw[1] + w)
+            x, y, th = arc_step(*self.pose, vm, wm, t_ref - self.prev_t0)
+            self.pose = (x, y, math.remainder(th, 2.0 * math.pi))
+        self.last_vw, self.prev_t0 = (v, w), t_ref
+        self.turns += 1
+        self.seconds += time.perf_counter() - t0
+        return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched)
+
+    def _nis(self, est: VelocityEstimate) -> float:
+        kf = self.kf
+        y = np.array([est.v_mps, est.w_radps]) - kf.H @ kf.x
+        s = kf.H @ kf.P @ kf.H.T + est.cov
+        return float(y @ np.linalg.solve(s, y))
+
+    def _update(self, est: VelocityEstimate) -> None:
+        if self._nis(est) > self.cfg.reset_nis:
+            # supported by the coincidences but far from the prediction (a sudden stop, a
+            # wrong filter after a loss): start the filter again from the measurement
+            self.resets += 1
+            self.kf = self._new_filter(est.v_mps, est.w_radps, est.cov)
+            return
+        self.kf.update(np.array([est.v_mps, est.w_radps]), R=est.cov)
+
+    def _search(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float,
+                around: tuple[float, float] | None, acc: float) -> tuple[float, float, int] | None:
+        c = self.cfg
+        v_lo, v_hi = -c.max_reverse_mps, c.max_speed_mps
+        w_lo, w_hi = -c.max_yaw_rate_radps, c.max_yaw_rate_radps
+        prior = None
+        if around is not None:  # +-3 sigma of the prediction, within [1, 3] m/s and [3, 12] deg/s
+            P = self.kf.P
+            sv = min(max(3.0 * math.sqrt(P[0, 0]), 1.0), 3.0)
+            sw = min(max(3.0 * math.sqrt(P[2, 2]), math.radians(3.0)), math.radians(12.0))
+            cv, cw = min(max(around[0], v_lo), v_hi), min(max(around[1], w_lo), w_hi)
+            v_lo, v_hi = max(v_lo, cv - sv), min(v_hi, cv + sv)
+            w_lo, w_hi = max(w_lo, cw - sw), min(w_hi, cw + sw)
+            prior = (around[0], around[1], np.array([[P[0, 0], P[0, 2]], [P[2, 0], P[2, 2]]]))
+        return search_velocity(ea, eb, t_ref, beta, (v_lo, v_hi), (w_lo, w_hi), c.search_v_step,
+                               c.search_w_step, c.search_gate_m, prior=prior, accel_mps2=acc)
+
+    def _score(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, v: float, w: float, acc: float) -> int:
+        r = search_velocity(ea, eb, t_ref, beta, (v, v), (w, w), 1.0, 1.0, self.cfg.search_gate_m, accel_mps2=acc)
+        return 0 if r is None else r[2]
+
+    def beam_poses(self, t_s: np.ndarray, t_from: float, pose_from: tuple[float, float, float],
+                   v: float, w: float) -> np.ndarray:
+        """Poses (n, 3) of beams at ``t_s`` on the arc (v, w) from ``pose_from`` at ``t_from``."""
+        dx, dy, dth = arc_poses(v, w, np.asarray(t_s) - t_from)
+        x0, y0, th0 = pose_from
+        c, s = math.cos(th0), math.sin(th0)
+        return np.column_stack([x0 + c * dx - s * dy, y0 + s * dx + c * dy, th0 + dth])
+
+
+class DistortionOdometry(Component):
+    """Radar-only odometry from the distortion of the scans (seed 1 §4.2, Figs. 13-16): no
+    odometer, no gyro. Beams in (any beams per turn, either rotation sense, with or without
+    Doppler ramps); per turn out: ``twist`` (V, w with covariance, Kalman-filtered), ``pose``
+    (integrated, frame ``odom``), ``degraded`` (1 when the turn gave no measurement: the
+    covariance grows) and every ``map_period_s`` the map of the echoes' power placed by the
+    odometry's own poses (Fig. 16). Outputs are stamped at the first beam of the newer of the
+    two turns compared. Never a NaN: before its first measurement it emits nothing.
+    """
+
+    beams = Input(RadarBeam, doc="radar beams, each stamped at its own time")
+    twist = Output(Twist2D, doc="speed and yaw rate at the turn boundary, with covariance (v, w)")
+    pose = Output(Pose2D, doc="integrated pose (frame odom), with covariance")
+    degraded = Output(Scalar, doc="1 when the turn gave no velocity measurement (prediction only), else 0")
+    map = Output(Grid, doc="echo power placed by the odometry's own poses (dB above the beam median)")
+    map_timer = Periodic("map_period_s")
+
+    threshold_db = Param(float, default=12.0, gt=0, doc="echoes: local maxima this far above their beam's median")
+    max_echoes = Param(int, default=250, gt=0, doc="echoes kept per turn and ramp (the strongest)")
+    window_bins = Param(int, default=5, ge=3, doc="local-maximum window in range bins")
+    range_min_m = Param(float, default=3.0, ge=0, doc="echoes nearer are ignored")
+    range_max_m = Param(float, default=80.0, gt=0, doc="echoes farther are ignored")
+    doppler = Param(bool, default=True, doc="remove the range-Doppler coupling with the estimated speed")
+    max_speed_mps = Param(float, default=25.0, gt=0, doc="search range of the speed (forward)")
+    max_reverse_mps = Param(float, default=3.0, ge=0, doc="search range of the speed (backward)")
+    max_yaw_rate_dps = Param(float, default=30.0, gt=0, doc="search range of the yaw rate")
+    gate_m = Param(float, default=1.0, gt=0, doc="first association gate (from the search's start)")
+    sigma_range_m = Param(float, default=0.0, ge=0, doc="echo range std (0: half the range resolution)")
+    sigma_azimuth_deg = Param(float, default=0.3, gt=0, doc="echo azimuth std")
+    min_pairs = Param(int, default=12, ge=3, doc="fewer associated echoes: no measurement (degraded)")
+    accel_std_mps2 = Param(float, default=1.0, gt=0, doc="filter: change of acceleration per second")
+    yaw_accel_std_dps2 = Param(float, default=3.0, gt=0, doc="filter: change of yaw rate per second")
+    map_cell_m = Param(float, default=0.5, ge=0, doc="map cell (0: no map)")
+    map_range_m = Param(float, default=60.0, gt=0, doc="beams placed in the map up to this range")
+    map_period_s = Param(float, default=30.0, gt=0, doc="period of the map output (s)")
+    frame = Param(str, default="odom", doc="frame of the poses and of the map")
+
+    def start(self) -> None:
+        cfg = DistortionConfig(
+            EchoParams(self.threshold_db, self.max_echoes, 0, self.window_bins, self.range_min_m, self.range_max_m),
+            self.doppler, self.max_speed_mps, self.max_reverse_mps, math.radians(self.max_yaw_rate_dps),
+            self.gate_m, self.sigma_range_m, math.radians(self.sigma_azimuth_deg), self.min_pairs,
+            self.accel_std_mps2, math.radians(self.yaw_accel_std_dps2))
+        self.core = DistortionCore(cfg)
+        self._beams: list[tuple[int, RadarBeam]] = []
+        self._turn: int | None = None
+        self._t0: int | None = None
+        self._pose_cov = np.zeros((3, 3))
+        self._map = TileMap(self.map_cell_m) if self.map_cell_m > 0 else None
+        self._last_turn: tuple | None = None  # (t_s, azimuths, power dB, config) of the previous turn
+        self._last_result: TurnResult | None = None
+        self.partial_turns = 0
+        self.map_s = 0.0
+
+    def process(self, t: int) -> None:
+        if self.trigger == "map_timer":
+            if self._map is not None and not self._map.empty:
+                self.map.emit(t, self._map.to_grid(self.frame))
+            return
+        s = self.beams.take_sample()
+        beam: RadarBeam = s.data
+        if self._turn is not None and beam.turn != self._turn:
+            self._close_turn()
+        self._turn = beam.turn
+        self._beams.append((s.timestamp, beam))
+
+    def flush(self, t: int) -> None:
+        """The mission is over: the last turn if complete, then the final map."""
+        self._close_turn()
+        if self._map is not None and not self._map.empty:
+            self.map.emit(t, self._map.to_grid(self.frame))
+
+    def _close_turn(self) -> None:
+        beams, self._beams = self._beams, []
+        if not beams:
+            return
+        config = beams[0][1].config
+        if len(beams) < 0.9 * config.beams_per_turn:
+            self.partial_turns += 1  # a turn cut by the recording's start or end, or by losses
+            return
+        if self._t0 is None:
+            self._t0 = beams[0][0]
+        t_ns = np.array([b[0] for b in beams], np.int64)
+        t_s = (t_ns - self._t0) * 1e-9
+        az = np.array([b[1].azimuth_rad for b in beams])
+        up = np.stack([b[1].up for b in beams])
+        down = np.stack([b[1].down for b in beams]) if config.doppler and beams[0][1].down.size else None
+        r = self.core.step(t_s, az, up, down, config)
+        if r is not None and math.isfinite(r.v_mps):
+            self._emit(int(t_ns.min()), r)
+            if self._map is not None and self._last_turn is not None:
+                self._add_to_map(r)
+        self._last_turn = (t_s, az, up, config)
+        if r is not None and math.isfinite(r.v_mps):
+            self._last_result = r
+
+    def _emit(self, t_ns: int, r: TurnResult) -> None:
+        self.twist.emit(t_ns, Twist2D(r.v_mps, r.w_radps, r.cov))
+        prev = self._last_result
+        if prev is not None:  # first order: the mean velocity's covariance over the step
+            dt = r.t_s - prev.t_s
+            th = prev.pose[2]
+            j = np.array([[math.cos(th) * dt, 0.0], [math.sin(th) * dt, 0.0], [0.0, dt]])
+            self._pose_cov = self._pose_cov + j @ (0.5 * (r.cov + prev.cov)) @ j.T
+        x, y, th = r.pose
+        self.pose.emit(t_ns, Pose2D(x, y, th, self._pose_cov.copy(), self.frame))
+        self.degraded.emit(t_ns, Scalar(1.0 if r.degraded else 0.0))
+
+    def _add_to_map(self, r: TurnResult) -> None:
+        """The previous turn's beams placed along the arc between its pose and this one."""
+        t0 = time.perf_counter()
+        prev = self._last_result
+        t_s, az, up, config = self._last_turn
+        if prev is None:
+            return
+        vm, wm = 0.5 * (prev.v_mps + r.v_mps), 0.5 * (prev.w_radps + r.w_radps)
+        poses = self.core.beam_poses(t_s, prev.t_s, prev.pose, vm, wm)
+        db = 10.0 * np.log10(np.maximum(np.asarray(up, np.float32), np.float32(1e-30)))
+        db = np.maximum(db - np.median(db, axis=1, keepdims=True), 0.0)
+        k = np.arange(up.shape[1])
+        rng = np.asarray(config.range_of_bin_m(k), float)
+        sel = (rng >= self.range_min_m) & (rng <= self.map_range_m)
+        rng, db = rng[sel], db[:, sel]
+        a = poses[:, 2:3] + az[:, None]
+        x = poses[:, 0:1] + rng[None, :] * np.cos(a)
+        y = poses[:, 1:2] + rng[None, :] * np.sin(a)
+        tm = self._map
+        ix = np.floor(x / tm.cell_m + 0.5).astype(np.int64).ravel()
+        iy = np.floor(y / tm.cell_m + 0.5).astype(np.int64).ravel()
+        ix0, iy0 = int(ix.min()), int(iy.min())
+        nx, ny = int(ix.max()) - ix0 + 1, int(iy.max()) - iy0 + 1
+        flat = (iy - iy0) * nx + (ix - ix0)
+        s = np.bincount(flat, weights=db.ravel(), minlength=nx * ny).reshape(ny, nx).astype(np.float32)
+        n = np.bincount(flat, minlength=nx * ny).reshape(ny, nx).astype(np.float32)
+        tm.add(ix0, iy0, s, n)
+        tm.images += 1
+        self.map_s += time.perf_counter() - t0
+
+    def summary(self) -> dict:
+        core = getattr(self, "core", None)
+        if core is None or not core.turns:
+            return {}
+        return {
+            "turns": core.turns,
+            "degraded_turns": core.degraded,
+            "wide_searches": core.wide_searches,
+            "filter_resets": core.resets,
+            "partial_turns": self.partial_turns,
+            "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
+            "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
+        }
