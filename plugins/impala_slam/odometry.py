@@ -7,10 +7,11 @@ Per turn (:class:`DistortionCore`):
    braking into a roundabout is predicted) predicts the velocities at the boundary between
    the previous turn and this one;
 3. the two turns' echoes are made to coincide from that prediction
-   (:func:`~.distortion.estimate_velocity`). When the result is not trusted (too few pairs,
-   far fewer than the last turns had, or inconsistent with the prediction) a grid search
-   around the prediction (the whole speed and yaw-rate range on the first turn) gives
-   another start and the better of the two by coincidences is kept;
+   (:func:`~.distortion.estimate_velocity`); the result is kept when its coincidence score
+   (strongest echoes, range-compensated) reaches ``accept_ratio`` of the last turns'. Else a
+   grid search (:func:`~.distortion.search_velocity`) within 3 sigma of the prediction (the
+   whole speed and yaw-rate range on the first turn, and when even the best candidate
+   scores below ``lost_ratio``: a loss) gives the start of the refinement;
 4. the filter is updated with it (a measurement more than ``reset_nis`` away in normalised
    innovation while well supported by coincidences re-initialises the filter: a sudden
    stop); without a measurement it only predicts: the covariance grows and the turn
@@ -378,6 +379,7 @@ class DistortionOdometry(Component):
         return {
             "turns": core.turns,
             "degraded_turns": core.degraded,
+            "searches": core.searches,
             "wide_searches": core.wide_searches,
             "filter_resets": core.resets,
             "partial_turns": self.partial_turns,
