@@ -22,7 +22,7 @@ __all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "EXIT_INTERRUPTED", "
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: built-in subcommand modules, in the order --help lists them
-COMMANDS = ("run", "validate", "plugins", "graph", "schema", "info", "replay", "export")
+COMMANDS = ("run", "validate", "plugins", "graph", "schema", "info", "replay", "export", "sweep")
 
 EPILOG = """\
 examples:
@@ -31,6 +31,7 @@ examples:
   impala-flow validate my_graph.yaml            check a graph without running it
   impala-flow plugins                           installed plugins, their components and ports
   impala-flow graph my_graph.yaml --png g.png   picture of a graph (or --dot for Graphviz text)
+  impala-flow sweep graphs/sweeps/rslam-search.yaml -o out/sweep   missions x seeds x parameters on Dask
 
 exit codes: 0 ok, 1 run failed, 2 usage or invalid graph, 130 interrupted (after a clean stop)
 add --debug before the subcommand to see full tracebacks.
