@@ -73,6 +73,12 @@ def relative_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray, segment_m: fl
     """Mean translation error over every ``segment_m`` stretch of the true path, in % of it
     (KITTI-style relative pose error: both segment ends expressed in the segment start's frame).
     NaN when the path is shorter than one segment."""
+    errs = _segment_errors(est_xyt, truth_xyt, segment_m)
+    return 100.0 * float(np.mean(errs)) if errs else float("nan")
+
+
+def _segment_errors(est_xyt: np.ndarray, truth_xyt: np.ndarray, segment_m: float) -> list[float]:
+    """Relative translation error (fraction) of every ``segment_m`` stretch of the true path."""
     dist = distance_travelled_m(truth_xyt[:, :2])
     errs = []
     for i in range(len(dist)):
@@ -80,7 +86,7 @@ def relative_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray, segment_m: fl
         if j >= len(dist):
             break
         errs.append(np.hypot(*(_rel(est_xyt[i], est_xyt[j]) - _rel(truth_xyt[i], truth_xyt[j]))) / (dist[j] - dist[i]))
-    return 100.0 * float(np.mean(errs)) if errs else float("nan")
+    return errs
 
 
 def segment_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray,
@@ -88,12 +94,8 @@ def segment_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray,
     """KITTI-style relative error: :func:`relative_error_pct` averaged over every segment of
     every length in ``lengths_m`` that fits in the path (NaN if none does); the segment-drift
     figure radar-odometry papers report (CFEAR, BFAR: 1-2 % on Oxford)."""
-    vals = [relative_error_pct(est_xyt, truth_xyt, L) for L in lengths_m]
-    dist = distance_travelled_m(truth_xyt[:, :2])
-    counts = [int(np.sum(dist + L <= dist[-1])) for L in lengths_m]
-    num = sum(v * n for v, n in zip(vals, counts, strict=True) if n and not math.isnan(v))
-    den = sum(n for v, n in zip(vals, counts, strict=True) if n and not math.isnan(v))
-    return num / den if den else float("nan")
+    errs = [e for L in lengths_m for e in _segment_errors(est_xyt, truth_xyt, L)]
+    return 100.0 * float(np.mean(errs)) if errs else float("nan")
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -142,16 +142,22 @@ def extract_echoes(t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, dow
     return Echoes.concat(parts)
 
 
+def _arc_factors(th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """cos th, sin th, sin(th)/th and (1 - cos th)/th (series below 1e-6 rad): the chord of an
+    arc of unit length turning by th is (sinc, cosc)."""
+    small = np.abs(th) < 1e-6
+    ths = np.where(small, 1.0, th)
+    c, s = np.cos(th), np.sin(th)
+    return c, s, np.where(small, 1.0 - th * th / 6.0, s / ths), np.where(small, 0.5 * th, (1.0 - c) / ths)
+
+
 def arc_poses(v_mps: float, w_radps: float, dt_s: np.ndarray, accel_mps2: float = 0.0
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(x, y, theta) after ``dt_s`` at constant speed and yaw rate, from (0, 0, 0); with an
     acceleration the distance along the arc is v dt + a dt^2 / 2 (chord of the constant-rate
     arc of that length: exact when a = 0, second order otherwise)."""
     th = w_radps * dt_s
-    small = np.abs(th) < 1e-6
-    ths = np.where(small, 1.0, th)
-    sinc = np.where(small, 1.0 - th * th / 6.0, np.sin(ths) / ths)
-    cosc = np.where(small, 0.5 * th, (1.0 - np.cos(ths)) / ths)
+    _, _, sinc, cosc = _arc_factors(th)
     d = v_mps * dt_s + 0.5 * accel_mps2 * dt_s * dt_s
     return d * sinc, d * cosc, th
 
@@ -308,12 +314,7 @@ def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: fl
     """Integer cell keys of every echo for every candidate, (len(ws), len(vs), n): the point
     is linear in v for a given w (x = x0(w) + v x1(w)), so the trigonometry runs once per w."""
     dt = e.t_s[None, :] - t_ref_s
-    th = ws[:, None] * dt
-    small = np.abs(th) < 1e-6
-    ths = np.where(small, 1.0, th)
-    c, s = np.cos(th), np.sin(th)
-    sinc = np.where(small, 1.0 - th * th / 6.0, s / ths)
-    cosc = np.where(small, 0.5 * th, (1.0 - c) / ths)
+    c, s, sinc, cosc = _arc_factors(ws[:, None] * dt)
     ca, sa = np.cos(e.azimuth_rad)[None, :], np.sin(e.azimuth_rad)[None, :]
     cang, sang = c * ca - s * sa, s * ca + c * sa  # cos, sin of th + azimuth
     d0 = 0.5 * acc * dt * dt

@@ -124,12 +124,17 @@ class DistortionCore:
              config) -> TurnResult | None:
         """One complete turn (beam times in s from a fixed origin). None for the first turn."""
         t0 = time.perf_counter()
+        try:
+            return self._step(t_s, azimuth_rad, up, down, config)
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+    def _step(self, t_s, azimuth_rad, up, down, config) -> TurnResult | None:  # type: ignore[no-untyped-def]
         c = self.cfg
         echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
         t_ref = float(np.min(t_s))
         prev, self.prev = self.prev, echoes
         if prev is None:
-            self.seconds += time.perf_counter() - t0
             return None
         beta = doppler_beta_s(config) if c.doppler else 0.0
         sr = self._sigma_r(config)
@@ -174,7 +179,6 @@ class DistortionCore:
         elif self.kf is None:
             self.degraded += 1
             self.turns += 1
-            self.seconds += time.perf_counter() - t0
             return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched)
         self.degraded += degraded
         v, w = float(self.kf.x[0]), float(self.kf.x[2])
@@ -186,7 +190,6 @@ class DistortionCore:
             self.pose = (x, y, math.remainder(th, 2.0 * math.pi))
         self.last_vw, self.prev_t0 = (v, w), t_ref
         self.turns += 1
-        self.seconds += time.perf_counter() - t0
         return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched)
 
     def _nis(self, est: VelocityEstimate) -> float:
