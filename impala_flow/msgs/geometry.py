@@ -9,7 +9,7 @@ import numpy as np
 
 from ._base import message
 
-__all__ = ["Scalar", "Pose2D", "Twist2D", "Trajectory2D", "Grid", "Points2D", "wrap_angle"]
+__all__ = ["Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D", "wrap_angle"]
 
 
 def wrap_angle(a: float | np.ndarray) -> float | np.ndarray:
@@ -68,6 +68,23 @@ class Trajectory2D:
     t_ns: np.ndarray
     xyt: np.ndarray
     frame: str = "map"
+
+
+@message("impala.RelativePose2D", version=1)
+class RelativePose2D:
+    """A constraint between two poses of one trajectory, each named by its time (int ns):
+    the pose at ``to_t_ns`` expressed in the frame of the pose at ``from_t_ns``, with its
+    3x3 covariance over (x, y, theta). ``kind`` says where it comes from: ``odometry``,
+    ``registration`` (consecutive scans), ``loop`` (a loop closure accepted by its
+    producer), ``loop_rejected`` (a candidate its producer's gate refused)."""
+
+    from_t_ns: int
+    to_t_ns: int
+    x_m: float
+    y_m: float
+    theta_rad: float
+    cov_xyt: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    kind: str = "registration"
 
 
 @message("impala.Grid", version=1)

@@ -13,11 +13,13 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    from .comparison import TrajectoryComparison
     from .evaluator import TrajectoryEvaluator
     from .tracking import TrackingEvaluator
 
     registry.add_component(TrajectoryEvaluator)
     registry.add_component(TrackingEvaluator)
+    registry.add_component(TrajectoryComparison)
 
 
 @hookimpl

@@ -13,9 +13,15 @@ from impala_flow.plugins import hookimpl
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     from .dead_reckoning import DeadReckoning
+    from .ekf_slam import EkfSlam
     from .odometry import DistortionOdometry
+    from .posegraph import PoseGraph
+    from .registration import FmtRegistration
     from .rslam import RSlam
 
     registry.add_component(RSlam)
     registry.add_component(DeadReckoning)
     registry.add_component(DistortionOdometry)
+    registry.add_component(FmtRegistration)
+    registry.add_component(EkfSlam)
+    registry.add_component(PoseGraph)

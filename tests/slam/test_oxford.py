@@ -110,3 +110,30 @@ def test_the_report_draws_the_pairs(oxford_run):
     for name in ("pair_errors.png", "error_vs_distance.png", "trajectory_map.png", "map.png"):
         img = cv2.imread(str(out / name))
         assert img is not None and img.shape[0] > 300 and img.std() > 5.0, name
+
+
+def test_fmt_registration_beside_rslam_on_the_same_pairs(oxford_run):
+    """slam.FmtRegistration in the same graph (issue 14): its transforms, read back with the
+    project's reader, against the CSV's pairs; R-SLAM's per-pair error printed beside."""
+    from impala_flow.io.reader import MissionReader
+
+    folder, out = oxford_run
+    truth = _truth_rows(folder)
+    trans, rot = [], []
+    with MissionReader(out / "oxford.mcap") as reader:
+        transforms = [m.data for m in reader.messages(["fmt/transform"])]
+    for c in transforms:
+        if c.kind != "registration":
+            continue
+        rows = [(t, r) for t, r in truth.items() if abs(t - c.to_t_ns) <= 1000 and abs(r[0] - c.from_t_ns) <= 1000]
+        if not rows:
+            continue
+        _, (_, x, y, yaw) = rows[0]
+        trans.append(math.hypot(c.x_m - x, c.y_m - y))
+        rot.append(abs(math.degrees(math.remainder(c.theta_rad - yaw, 2 * math.pi))))
+    assert len(trans) == 10
+    rslam = json.loads((out / "metrics.json").read_text())
+    print(f"\nOxford pairs, FMT: mean {100 * np.mean(trans):.1f} cm / {np.mean(rot):.3f} deg; R-SLAM: "
+          f"{100 * rslam['pair_trans_err_mean_m']:.1f} cm / {rslam['pair_rot_err_mean_deg']:.3f} deg")
+    assert np.mean(trans) <= 0.10 and np.mean(rot) <= 0.25
+    assert np.max(trans) < 0.2

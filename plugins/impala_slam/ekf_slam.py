@@ -1,0 +1,294 @@
+"""``slam.EkfSlam``: trajectory-oriented EKF-SLAM with Fourier-Mellin registration and loop
+closure (seed 2, §IV-VI). The filter itself is :class:`impala_slam.ekf_core.PoseEkf`.
+
+Per radar image (one turn):
+
+1. **Prediction / augmentation**: the new pose is the last one composed with the odometry
+   increment since the previous image (``Grid.pose`` from the panoramic builder's odometer
+   and gyro, or the ``odometry`` input, e.g. ``slam.DistortionOdometry``'s pose; without
+   either, the last increment again), with the covariance Q of that increment:
+   sigma_xy = odo_sigma_m + odo_sigma_frac |d|, sigma_theta = odo_sigma_deg +
+   odo_sigma_rot_frac |dtheta| (independent per step: the odometer's scale error and the
+   gyro's bias are not white, which is why Q is wider than their noise).
+2. **Registration** with the previous image: the FMT transform and its covariance (from
+   the ``registration`` input, i.e. ``slam.FmtRegistration`` upstream, or computed here
+   with ``registration: internal``); an EKF update of T_{n-1,n}, gated by chi^2 (3 dof)
+   so a wrong registration never enters.
+3. **Loop closure**: keyframes (an image kept every ``keyframe_m`` of travel) at least
+   ``loop_min_travel_m`` back along the path whose predicted distance to the current pose
+   is within ``loop_radius_m`` at the Mahalanobis gate (chi^2 2 dof, 99 %) are candidates,
+   nearest (in Mahalanobis distance) first; up to ``loop_candidates`` per turn are
+   registered by FMT and accepted when the innovation passes ``loop_chi2`` (3 dof): an EKF
+   update that moves the whole trajectory. Candidates refused by the gate are counted (and
+   emitted as ``loop_rejected`` constraints, so a pose graph downstream can be shown them).
+
+Outputs: ``pose`` each turn (the newest pose, covariance its 3x3 block), ``trajectory``
+every ``trajectory_period_s`` and at the end (every pose after the last update), ``map``
+every ``map_period_s`` and at the end (the keyframes' dB images placed at their current
+poses: the global map of the seed's Figs. 5 and 7), ``constraints`` (every odometry
+increment, registration and loop closure as ``RelativePose2D``, for ``slam.PoseGraph``).
+The map frame is the first pose (0, 0, 0), as in the seed's comparison.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from impala_flow.component import Input, Output, Param, Periodic
+from impala_flow.msgs import Grid, Pose2D, RelativePose2D, Trajectory2D
+
+from .ekf_core import PoseEkf
+from .fmt import FmtImage, FmtParams, polar_spectrum, prepare, register
+from .registration import UNKNOWN_COV, FmtComponent
+from .se2 import between
+from .tilemap import TileMap, warp_grid_to_map
+
+__all__ = ["EkfSlam"]
+
+Pose = tuple[float, float, float]
+
+CHI2_2DOF_99 = 9.21
+
+
+class EkfSlam(FmtComponent):
+    """Trajectory-oriented EKF-SLAM: every pose in the state, FMT registrations and loop
+    closures as observations (see the module docstring)."""
+
+    pose = Output(Pose2D, doc="newest pose in the map frame, with its 3x3 covariance")
+    trajectory = Output(Trajectory2D, doc="every pose after the last update")
+    map = Output(Grid, doc="keyframe images (dB over the threshold) placed at their estimated poses")
+    constraints = Output(RelativePose2D, doc="odometry, registrations and loop closures (for slam.PoseGraph)")
+    trajectory_timer = Periodic("trajectory_period_s")
+    map_timer = Periodic("map_period_s")
+
+    registration = Param(str, default="input", choices=("input", "internal"),
+                         doc="consecutive registrations from the 'registration' input (slam.FmtRegistration) "
+                             "or computed here")
+    trajectory_period_s = Param(float, default=10.0, gt=0, doc="period of the trajectory output (s)")
+    map_period_s = Param(float, default=60.0, gt=0, doc="period of the map output (s)")
+    odo_sigma_m = Param(float, default=0.05, ge=0, doc="odometry: translation std per step (m)")
+    odo_sigma_frac = Param(float, default=0.03, ge=0, doc="odometry: translation std per metre travelled")
+    odo_sigma_deg = Param(float, default=0.5, ge=0, doc="odometry: heading std per step (deg)")
+    odo_sigma_rot_frac = Param(float, default=0.03, ge=0, doc="odometry: heading std per radian turned")
+    registration_chi2 = Param(float, default=16.27, gt=0,
+                              doc="consecutive registrations beyond this chi^2 (3 dof) are refused")
+    keyframe_m = Param(float, default=4.0, gt=0, doc="travel between two images kept for loop closure")
+    loop_min_travel_m = Param(float, default=60.0, gt=0, doc="a loop candidate lies at least this far back")
+    loop_radius_m = Param(float, default=15.0, gt=0, doc="poses nearer than this see the same scene")
+    loop_candidates = Param(int, default=2, ge=0, doc="candidates registered per turn (0: no loop closure)")
+    loop_chi2 = Param(float, default=11.34, gt=0, doc="innovation gate of a loop closure (chi^2, 3 dof)")
+    loop_min_snr = Param(float, default=8.0, gt=0, doc="loop registrations with a weaker peak are refused")
+
+    @classmethod
+    def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
+        ins = dict(cls.__inputs__)
+        outs = dict(cls.__outputs__)
+        if params.get("registration", "input") == "input":
+            ins["image"] = Input(Grid, sync="turn", maxsize=64, doc="panoramic image, vehicle frame, pose = odometry")
+            ins["registration"] = Input(RelativePose2D, sync="turn", maxsize=64,
+                                        doc="FMT transform from the previous image (slam.FmtRegistration)")
+        else:
+            ins["image"] = Input(Grid, maxsize=64, doc="panoramic image, vehicle frame, pose = odometry")
+        ins["odometry"] = Input(Pose2D, policy="sampling", history=10.0, required=False,
+                                doc="odometry pose (instead of the image's), e.g. slam.DistortionOdometry")
+        return ins, outs
+
+    def start(self) -> None:
+        self.params_fmt: FmtParams = self.fmt_params()
+        self.ekf: PoseEkf | None = None
+        self.t_ns: list[int] = []
+        self.travel_m: list[float] = []
+        self.keyframes: dict[int, np.ndarray] = {}  # pose index -> registration image (float16)
+        self._prev: FmtImage | None = None
+        self._prev_odom: Pose | None = None
+        self._last_inc: Pose = (0.0, 0.0, 0.0)
+        self.counts = dict(turns=0, registrations=0, registration_failures=0, registrations_refused=0,
+                           loop_candidates_tried=0, loop_closures=0, loop_rejected_gate=0, loop_rejected_weak=0,
+                           no_odometry=0)
+        self.fmt_s = 0.0
+        self.filter_s = 0.0
+        self.step_ms: list[tuple[int, float]] = []  # (poses, ms of the whole step)
+
+    # --- per turn ----------------------------------------------------------------------
+    def process(self, t: int) -> None:
+        if self.trigger == "trajectory_timer":
+            if self.ekf is not None:
+                self._emit_trajectory(t)
+            return
+        if self.trigger == "map_timer":
+            if self.keyframes:
+                self.map.emit(t, self.global_map())
+            return
+        grid: Grid = self.inputs["image"].take()
+        reg: RelativePose2D | None = self.inputs["registration"].take() if "registration" in self.inputs else None
+        t_step = time.perf_counter()
+        odom = self._odometry(t, grid)
+        t0 = time.perf_counter()
+        cur = prepare(grid, self.params_fmt, self.linear_power)
+        self.fmt_s += time.perf_counter() - t0
+        self.counts["turns"] += 1
+        if self.ekf is None:
+            self.ekf = PoseEkf()
+            self._after_step(t, cur, odom, t_step)
+            return
+        ekf = self.ekf
+        # 1. augmentation by the odometry increment
+        inc = between(self._prev_odom, odom) if (odom is not None and self._prev_odom is not None) else None
+        if inc is None:
+            self.counts["no_odometry"] += 1
+            inc = self._last_inc
+        q = self._odometry_cov(inc, no_odometry=odom is None)
+        t0 = time.perf_counter()
+        j = ekf.augment(inc, q)
+        self.filter_s += time.perf_counter() - t0
+        self.constraints.emit(t, RelativePose2D(self.t_ns[-1], t, *inc, q, "odometry"))
+        # 2. registration with the previous image
+        if reg is None or reg.kind == "start":
+            t0 = time.perf_counter()
+            r = register(self._prev, cur, self.params_fmt, prior_theta_rad=inc[2])
+            self.fmt_s += time.perf_counter() - t0
+            z, rcov, ok = r.xyt, r.cov_xyt, r.ok
+        else:
+            z, rcov, ok = (reg.x_m, reg.y_m, reg.theta_rad), np.asarray(reg.cov_xyt), reg.kind == "registration"
+        if ok:
+            self._observe(j - 1, j, z, rcov, t, self.registration_chi2, "registration")
+        else:
+            self.counts["registration_failures"] += 1
+            self.constraints.emit(t, RelativePose2D(self.t_ns[-1], t, 0.0, 0.0, 0.0, UNKNOWN_COV.copy(), "failed"))
+        self._after_step(t, cur, odom, t_step, inc)
+        # 3. loop closure
+        if self.loop_candidates > 0:
+            self._close_loops(t, j, cur)
+        self.step_ms[-1] = (self.step_ms[-1][0], 1e3 * (time.perf_counter() - t_step))
+        x, y, th = ekf.pose(j)
+        self.pose.emit(t, Pose2D(x, y, th, ekf.cov(j), "map"))
+
+    def _after_step(self, t: int, cur: FmtImage, odom: Pose | None, t_step: float,
+                    inc: Pose | None = None) -> None:
+        ekf = self.ekf
+        assert ekf is not None
+        j = ekf.n - 1
+        self.t_ns.append(t)
+        step = 0.0 if inc is None else math.hypot(inc[0], inc[1])
+        self.travel_m.append((self.travel_m[-1] if self.travel_m else 0.0) + step)
+        if inc is not None:
+            self._last_inc = inc
+        if odom is not None:
+            self._prev_odom = odom
+        self._prev = cur
+        last_kf = max(self.keyframes) if self.keyframes else None
+        if last_kf is None or self.travel_m[j] - self.travel_m[last_kf] >= self.keyframe_m:
+            self.keyframes[j] = cur.image.astype(np.float16)
+        self.step_ms.append((ekf.n, 1e3 * (time.perf_counter() - t_step)))
+        if j == 0:
+            x, y, th = ekf.pose(0)
+            self.pose.emit(t, Pose2D(x, y, th, ekf.cov(0), "map"))
+
+    def _odometry(self, t: int, grid: Grid) -> Pose | None:
+        port = self.inputs["odometry"]
+        if port.latest() is not None:
+            p = port.at(t, clamp=True)
+            return (p.x_m, p.y_m, p.theta_rad)
+        if grid.pose is not None:
+            return (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad)
+        return None
+
+    def _odometry_cov(self, inc: Pose, no_odometry: bool) -> np.ndarray:
+        d = math.hypot(inc[0], inc[1])
+        s_xy = self.odo_sigma_m + self.odo_sigma_frac * d
+        s_th = math.radians(self.odo_sigma_deg) + self.odo_sigma_rot_frac * abs(inc[2])
+        if no_odometry:  # a guess (the last increment again): wide
+            s_xy, s_th = s_xy + max(1.0, 0.5 * d), s_th + math.radians(5.0)
+        return np.diag([s_xy ** 2, s_xy ** 2, s_th ** 2])
+
+    def _observe(self, i: int, j: int, z: Pose, r: np.ndarray, t: int, gate: float, kind: str) -> bool:
+        ekf = self.ekf
+        assert ekf is not None
+        _, _, chi2 = ekf.innovation(i, j, z, r)
+        if not math.isfinite(chi2) or chi2 > gate:
+            self.counts["registrations_refused" if kind == "registration" else "loop_rejected_gate"] += 1
+            self.constraints.emit(t, RelativePose2D(self.t_ns[i], self.t_ns[j] if j < len(self.t_ns) else t,
+                                                    *z, r, f"{'registration' if kind == 'registration' else 'loop'}"
+                                                    "_rejected"))
+            return False
+        t0 = time.perf_counter()
+        ekf.update(i, j, z, r)
+        self.filter_s += time.perf_counter() - t0
+        self.counts["registrations" if kind == "registration" else "loop_closures"] += 1
+        self.constraints.emit(t, RelativePose2D(self.t_ns[i], self.t_ns[j] if j < len(self.t_ns) else t, *z, r, kind))
+        return True
+
+    def _close_loops(self, t: int, j: int, cur: FmtImage) -> None:
+        ekf = self.ekf
+        assert ekf is not None
+        far = [k for k in self.keyframes if self.travel_m[j] - self.travel_m[k] >= self.loop_min_travel_m]
+        if not far:
+            return
+        idx = np.array(far)
+        z, cov = ekf.relative(idx, j)
+        s = cov[:, :2, :2] + np.eye(2) * self.loop_radius_m ** 2
+        m2 = np.einsum("ki,kij,kj->k", z[:, :2], np.linalg.inv(s), z[:, :2])
+        order = np.argsort(m2)
+        cur_polar = None
+        for o in order[: self.loop_candidates]:
+            if m2[o] > CHI2_2DOF_99:
+                break
+            i = int(idx[o])
+            self.counts["loop_candidates_tried"] += 1
+            t0 = time.perf_counter()
+            img = self.keyframes[i].astype(np.float32)
+            old = FmtImage(img, polar_spectrum(img, self.params_fmt), self.params_fmt.cell_m)
+            if cur_polar is None:
+                cur_polar = cur
+            r = register(old, cur_polar, self.params_fmt, prior_theta_rad=float(z[o, 2]))
+            self.fmt_s += time.perf_counter() - t0
+            if not r.ok or r.snr_translation < self.loop_min_snr:
+                self.counts["loop_rejected_weak"] += 1
+                continue
+            self._observe(i, j, r.xyt, r.cov_xyt, t, self.loop_chi2, "loop")
+
+    # --- outputs -------------------------------------------------------------------------
+    def _emit_trajectory(self, t: int) -> None:
+        ekf = self.ekf
+        assert ekf is not None
+        self.trajectory.emit(t, Trajectory2D(np.array(self.t_ns, np.int64), ekf.x.copy(), "map"))
+
+    def global_map(self) -> Grid:
+        """The keyframes' images placed at their current estimates (mean where they overlap)."""
+        ekf = self.ekf
+        assert ekf is not None
+        p = self.params_fmt
+        tm = TileMap(p.cell_m, 64.0)
+        half = p.size // 2
+        for i, img in self.keyframes.items():
+            g = Grid(img, p.cell_m, -half * p.cell_m, -half * p.cell_m, "vehicle")
+            pose = ekf.pose(i)
+            reach = half * p.cell_m
+            ix0, iy0 = tm.index_of(pose[0] - reach, pose[1] - reach)
+            n = 2 * half + 2
+            w = warp_grid_to_map(g, pose, ix0, iy0, n, n, tm.cell_m, border=0.0)
+            seen = (w > 0).astype(np.float32)
+            tm.add(ix0, iy0, w, seen)
+        return tm.to_grid("map")
+
+    def flush(self, t: int) -> None:
+        if self.ekf is None:
+            return
+        self._emit_trajectory(t)
+        if self.keyframes:
+            self.map.emit(t, self.global_map())
+
+    def summary(self) -> dict:
+        if getattr(self, "ekf", None) is None:
+            return {}
+        turns = max(1, self.counts["turns"])
+        steps = [ms for _, ms in self.step_ms[1:]]
+        return {**self.counts, "poses": self.ekf.n, "keyframes": len(self.keyframes),
+                "fmt_ms_per_turn": round(1e3 * self.fmt_s / turns, 2),
+                "filter_ms_per_turn": round(1e3 * self.filter_s / turns, 2),
+                "step_ms_median": round(float(np.median(steps)), 2) if steps else 0.0,
+                "step_ms_last": round(steps[-1], 2) if steps else 0.0}

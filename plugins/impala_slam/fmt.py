@@ -1,0 +1,359 @@
+"""Fourier-Mellin registration of two radar images (seed 2, §V, Algorithm 1).
+
+:func:`prepare` brings a panoramic (``Grid``, vehicle frame) onto the registration grid:
+``size`` x ``size`` cells of ``cell_m`` centred on the radar, the thresholded power in dB
+(step 2: cells under the speckle threshold are 0), a radial taper to the range edge so the
+fixed disc of the radar's coverage (the same in both images, whatever the motion) does not
+pull the translation to zero. :func:`register` then runs the rest of Algorithm 1:
+
+- steps 3-5: magnitude of the FFT of each image (2-D Hann window,
+  ``cv2.createHanningWindow``), high-pass weighted (Reddy & Chatterji) so the low
+  frequencies of the coverage disc do not dominate, resampled to polar coordinates with
+  bilinear interpolation (``cv2.warpPolar``) over a band of spatial frequencies;
+- steps 6-9: the rotation is the shift along the angle axis, by phase correlation of the
+  two polar images (one cross-power spectrum along the angle summed over the radii: no
+  scale between radar images, so only the zero radial shift is searched). The magnitude
+  spectrum of a real image is centro-symmetric: the correlation peaks at theta and
+  theta + 180 deg alike, so both are carried on;
+- steps 10-14: the newer image is de-rotated for each of the two candidates and phase
+  correlated with the older one; the candidate whose translation peak is the stronger is
+  kept (the 180 deg ambiguity resolved), sub-cell peak by a quadratic fit of the 3x3 cells
+  around the maximum.
+
+The covariance comes from the correlation peaks, not a constant (the seed's): for each
+peak, the curvature H of the normalised correlation at the maximum (from the quadratic
+fit) and the peak's signal-to-noise ratio (height over the standard deviation of the
+correlation away from it) give var = k / (SNR^2 H) in cells^2, plus a quantisation floor
+of a twelfth of a cell squared: a sharp, strong peak is certain, a weak or elongated one
+(a corridor, an open field) is not, and along the right direction (H is a 2x2 matrix for
+the translation). The two constants ``k`` (translation, rotation) were set so that the
+normalised estimation error squared of simulated consecutive turns is near its expected
+value of 3 (``tests/slam/test_fmt.py`` checks it on scenario seeds that were not used).
+
+I deliberately compute the correlation surfaces with scipy.fft instead of calling
+``cv2.phaseCorrelate``: it returns only the peak, and the covariance needs the surface.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import scipy.fft
+
+from impala_flow.msgs import Grid
+
+__all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "phase_correlation"]
+
+
+@dataclass(frozen=True)
+class FmtParams:
+    cell_m: float = 0.5  # cell of the registration grid
+    size: int = 400  # cells per side (the grid spans +- size * cell_m / 2)
+    range_min_m: float = 3.0  # blind range: zeroed
+    range_max_m: float = 0.0  # outer radius used (0: the grid's half side)
+    taper_m: float = 15.0  # width of the radial cosine taper before range_max_m
+    db_floor_quantile: float = 0.9  # cells above this quantile of the observed power are kept (step 2)
+    angles: int = 720  # rows of the polar magnitude spectrum over 360 deg
+    band: tuple[float, float] = (0.02, 0.25)  # spatial frequencies used for the rotation (cycles / cell)
+    k_translation: float = 5.0  # covariance constants (see the module docstring)
+    k_rotation: float = 40.0
+    floor_cells: float = 0.06  # std floor of each peak (cells, rotation bins)
+    along_frac: float = 0.01  # std along the translation per metre (the odometer's scale in the images)
+    min_snr: float = 6.0  # a translation peak weaker than this is not a registration
+    refine_deg: float = 0.5  # step of the rotation refinement on the translation peak (0: Algorithm 1 only)
+
+
+@dataclass
+class FmtImage:
+    """An image ready to register: the tapered dB image and its polar magnitude spectrum."""
+
+    image: np.ndarray  # float32 size x size, row = y, column = x, radar at the centre
+    polar: np.ndarray  # angles x radii, float32: high-passed |FFT| in polar coordinates
+    cell_m: float
+
+    @property
+    def nbytes(self) -> int:
+        return self.image.nbytes + self.polar.nbytes
+
+
+@dataclass
+class FmtResult:
+    """Pose of the newer image's frame in the older one's, with its 3x3 covariance."""
+
+    x_m: float
+    y_m: float
+    theta_rad: float
+    cov_xyt: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    snr_translation: float = 0.0
+    snr_rotation: float = 0.0
+    ok: bool = False
+    reason: str = ""
+
+    @property
+    def xyt(self) -> tuple[float, float, float]:
+        return self.x_m, self.y_m, self.theta_rad
+
+
+# --- preparation (steps 1-2 and the spectrum of steps 3-5) ------------------------------
+
+_windows: dict[tuple[int, int], np.ndarray] = {}
+_highpass: dict[int, np.ndarray] = {}
+_tapers: dict[tuple, np.ndarray] = {}
+
+
+def _hann(shape: tuple[int, int]) -> np.ndarray:
+    if shape not in _windows:
+        _windows[shape] = cv2.createHanningWindow((shape[1], shape[0]), cv2.CV_32F)
+    return _windows[shape]
+
+
+def _high_pass(n: int) -> np.ndarray:
+    """Reddy & Chatterji's high-pass (1 - X)(2 - X), X = cos(pi u) cos(pi v), centred spectrum."""
+    if n not in _highpass:
+        f = np.fft.fftshift(np.fft.fftfreq(n))
+        x = np.outer(np.cos(np.pi * f), np.cos(np.pi * f))
+        _highpass[n] = ((1.0 - x) * (2.0 - x)).astype(np.float32)
+    return _highpass[n]
+
+
+def _taper(p: FmtParams) -> np.ndarray:
+    key = (p.size, p.cell_m, p.range_min_m, p.range_max_m, p.taper_m)
+    if key not in _tapers:
+        c = (np.arange(p.size) - p.size // 2) * p.cell_m
+        r = np.hypot(c[None, :], c[:, None])
+        r_max = p.range_max_m or p.size * p.cell_m / 2.0
+        w = np.clip((r_max - r) / max(p.taper_m, 1e-9), 0.0, 1.0)
+        w = 0.5 - 0.5 * np.cos(np.pi * w)
+        w[r < p.range_min_m] = 0.0
+        _tapers[key] = w.astype(np.float32)
+    return _tapers[key]
+
+
+def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
+    """The grid's values on the registration grid (radar at cell size // 2, axes kept)."""
+    data = np.ascontiguousarray(grid.data, np.float32)
+    s = grid.cell_m / p.cell_m
+    # registration pixel = s * grid pixel + offset, the vehicle origin -> centre cell
+    m = np.array([[s, 0.0, grid.origin_x_m / p.cell_m + p.size // 2],
+                  [0.0, s, grid.origin_y_m / p.cell_m + p.size // 2]])
+    interp = cv2.INTER_AREA if s < 1.0 else cv2.INTER_LINEAR
+    if s < 1.0 and abs(1.0 / s - round(1.0 / s)) < 1e-6:  # integer reduction: average the cells
+        k = int(round(1.0 / s))
+        h, w = (data.shape[0] // k) * k, (data.shape[1] // k) * k
+        data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
+        m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
+                      [0.0, 1.0, (grid.origin_y_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2]])
+        interp = cv2.INTER_LINEAR
+    return cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True) -> FmtImage:
+    """Steps 1-5 for one image: resample, threshold (step 2), dB, taper; polar |FFT|.
+
+    ``linear_power``: the grid holds power (the panoramic builder); False if already in dB
+    (Navtech PNGs)."""
+    p = params or FmtParams()
+    img = _resample(grid, p)
+    observed = img > 0
+    out = np.zeros_like(img)
+    if np.any(observed):
+        vals = img[observed]
+        if linear_power:
+            level = float(np.quantile(vals, p.db_floor_quantile))
+            level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
+            keep = img > level
+            out[keep] = 10.0 * np.log10(img[keep] / level)
+        else:
+            level = float(np.quantile(vals, p.db_floor_quantile))
+            keep = img > level
+            out[keep] = img[keep] - level
+    out *= _taper(p)
+    return FmtImage(out, polar_spectrum(out, p), p.cell_m)
+
+
+def polar_spectrum(img: np.ndarray, p: FmtParams) -> np.ndarray:
+    spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * _hann(img.shape), workers=1))).astype(np.float32)
+    spec *= _high_pass(img.shape[0])
+    n = img.shape[0]
+    radii = n // 2
+    polar = cv2.warpPolar(spec, (radii, p.angles), (n / 2.0, n / 2.0), radii,
+                          cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
+    lo, hi = int(p.band[0] * n), int(p.band[1] * n)  # radius of f cycles/cell = f * n pixels
+    band = polar[:, lo:hi]
+    return np.ascontiguousarray(band / max(float(band.std()), 1e-12), np.float32)
+
+
+# --- phase correlation ---------------------------------------------------------------
+
+def _quadratic_peak(c: np.ndarray, iy: int, ix: int) -> tuple[float, float, np.ndarray]:
+    """Sub-cell peak of a periodic surface by the quadratic through the 3x3 cells around
+    (iy, ix): offsets (dy, dx) and the 2x2 Hessian of -c / c(peak) (1 / cells^2)."""
+    ny, nx = c.shape
+    w = np.array([[c[(iy + a) % ny, (ix + b) % nx] for b in (-1, 0, 1)] for a in (-1, 0, 1)], float)
+    c0 = max(w[1, 1], 1e-12)
+    gx = (w[1, 2] - w[1, 0]) / 2.0
+    gy = (w[2, 1] - w[0, 1]) / 2.0
+    hxx = w[1, 2] - 2 * w[1, 1] + w[1, 0]
+    hyy = w[2, 1] - 2 * w[1, 1] + w[0, 1]
+    hxy = (w[2, 2] - w[2, 0] - w[0, 2] + w[0, 0]) / 4.0
+    h = -np.array([[hyy, hxy], [hxy, hxx]])
+    try:
+        d = np.linalg.solve(h, np.array([gy, gx]))
+    except np.linalg.LinAlgError:
+        d = np.zeros(2)
+    if not np.all(np.isfinite(d)) or np.any(np.abs(d) > 1.0):
+        d = np.zeros(2)
+    return float(d[0]), float(d[1]), h / c0
+
+
+def phase_correlation(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+    """Shift (dy, dx) in cells such that b(q) = a(q - d), its peak SNR and the normalised
+    Hessian of the peak (eq. 1 of seed 2: normalised cross-power spectrum, inverse FFT)."""
+    fa = scipy.fft.rfft2(a, workers=1)
+    fb = scipy.fft.rfft2(b, workers=1)
+    cross = fb * np.conj(fa)
+    cross /= np.maximum(np.abs(cross), 1e-12 * max(float(np.abs(cross).max()), 1e-30))
+    c = scipy.fft.irfft2(cross, s=a.shape, workers=1)
+    iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
+    dy, dx, h = _quadratic_peak(c, int(iy), int(ix))
+    snr = _snr(c, int(iy), int(ix))
+    ny, nx = c.shape
+    sy = (iy + dy + ny / 2) % ny - ny / 2
+    sx = (ix + dx + nx / 2) % nx - nx / 2
+    return float(sy), float(sx), snr, h
+
+
+def _snr(c: np.ndarray, iy: int, ix: int, guard: int = 3) -> float:
+    """Peak height over the standard deviation of the surface away from the peak."""
+    mask = np.ones(c.shape, bool)
+    ys = np.arange(iy - guard, iy + guard + 1) % c.shape[0]
+    xs = np.arange(ix - guard, ix + guard + 1) % c.shape[1]
+    mask[np.ix_(ys, xs)] = False
+    rest = c[mask]
+    sd = float(rest.std())
+    return float((c[iy, ix] - rest.mean()) / sd) if sd > 0 else 0.0
+
+
+def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, float]:
+    """Steps 6-9: rotation of b relative to a in [-pi/2, pi/2) (mod pi), its SNR and the
+    normalised curvature of the peak (1 / bins^2)."""
+    # centro-symmetric spectrum: fold the two half turns (period 180 deg), less noise
+    half = p.angles // 2
+    pa = a.polar[:half] + a.polar[half:2 * half]
+    pb = b.polar[:half] + b.polar[half:2 * half]
+    fa = scipy.fft.rfft(pa, axis=0, workers=1)
+    fb = scipy.fft.rfft(pb, axis=0, workers=1)
+    cross = np.sum(fb * np.conj(fa), axis=1)  # summed over the radii: zero radial shift (no scale)
+    cross /= np.maximum(np.abs(cross), 1e-30)
+    c = scipy.fft.irfft(cross, n=half, workers=1)
+    i = int(np.argmax(c))
+    y0, y1, y2 = c[(i - 1) % half], c[i], c[(i + 1) % half]
+    den = y0 - 2 * y1 + y2
+    d = 0.5 * (y0 - y2) / den if den < 0 else 0.0
+    d = float(np.clip(d, -1.0, 1.0))
+    curv = float(-den / max(y1, 1e-12)) if den < 0 else 0.0
+    snr = _snr(c[:, None], i, 0, guard=3)
+    shift = (i + d + half / 2) % half - half / 2  # bins of 360 / angles deg
+    # |F_b|(w) = |F_a|(R(theta) w): b's polar rows are a's shifted by -theta
+    theta = -math.radians(shift * 360.0 / p.angles)
+    return theta, snr, curv
+
+
+def _derotate(img: np.ndarray, theta: float) -> np.ndarray:
+    """b seen with a's axes: J(q) = b(R(theta)^T q), about the centre cell (the radar)."""
+    n = img.shape[0]
+    c, s = math.cos(theta), math.sin(theta)
+    cx = cy = float(n // 2)
+    # dst pixel q -> src pixel R^T (q - centre) + centre (WARP_INVERSE_MAP)
+    m = np.array([[c, s, cx - c * cx - s * cy], [-s, c, cy + s * cx - c * cy]])
+    return cv2.warpAffine(img, m, (n, n), flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
+             prior_theta_rad: float | None = None) -> FmtResult:
+    """Steps 6-14: the pose of b's frame in a's (b's radar position and heading seen from a).
+
+    ``prior_theta_rad`` (odometry) only breaks a tie between the two rotation candidates
+    whose translation peaks are within 10 % of each other."""
+    p = params or FmtParams()
+    if not (np.any(a.image) and np.any(b.image)):
+        return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
+    theta0, snr_r, curv_r = _rotation(a, b, p)
+    hann = _hann(a.image.shape)
+    wa = a.image * hann
+    best = None
+    for theta in (theta0, theta0 + math.pi):
+        j = _derotate(b.image, theta) * hann
+        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
+        dy, dx, snr, h = phase_correlation(wa, j)
+        cand = (snr, theta, -dx * p.cell_m, -dy * p.cell_m, h)
+        if best is None:
+            best = cand
+        elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
+            da = abs(math.remainder(cand[1] - prior_theta_rad, 2 * math.pi))
+            db = abs(math.remainder(best[1] - prior_theta_rad, 2 * math.pi))
+            best = cand if da < db else best
+        elif cand[0] > best[0]:
+            best = cand
+    assert best is not None
+    if p.refine_deg > 0:
+        best = _refine_rotation(wa, b.image, hann, best, math.radians(p.refine_deg), p.cell_m)
+    snr_t, theta, x, y, h = best
+    theta = math.remainder(theta, 2 * math.pi)
+    cov = _covariance(p, snr_t, h, snr_r, curv_r, (x, y))
+    ok = snr_t >= p.min_snr and bool(np.all(np.isfinite(cov)))
+    return FmtResult(x, y, theta, cov, snr_t, snr_r, ok, "" if ok else f"weak translation peak (SNR {snr_t:.1f})")
+
+
+def _translation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, cell_m: float) -> tuple:
+    dy, dx, snr, h = phase_correlation(wa, _derotate(b_img, theta) * hann)
+    return snr, theta, -dx * cell_m, -dy * cell_m, h
+
+
+def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: tuple, step: float,
+                     cell_m: float) -> tuple:
+    """Beyond Algorithm 1: the rotation of the spectra is good to a bin; the translation
+    peak's SNR as a function of the rotation is sharper. Parabola through theta - step,
+    theta, theta + step (moving at most twice towards the larger side), then the translation
+    again at the refined rotation."""
+    theta = best[1]
+    mid = best
+    for _ in range(3):
+        lo = _translation(wa, b_img, hann, theta - step, cell_m)
+        hi = _translation(wa, b_img, hann, theta + step, cell_m)
+        if lo[0] > mid[0] and lo[0] >= hi[0]:
+            theta, mid = theta - step, lo
+            continue
+        if hi[0] > mid[0]:
+            theta, mid = theta + step, hi
+            continue
+        den = lo[0] - 2 * mid[0] + hi[0]
+        if den >= 0:
+            return mid
+        d = float(np.clip(0.5 * (lo[0] - hi[0]) / den, -0.5, 0.5))
+        return _translation(wa, b_img, hann, theta + d * step, cell_m)
+    return mid
+
+
+def _covariance(p: FmtParams, snr_t: float, h: np.ndarray, snr_r: float, curv_r: float,
+                t_xy: tuple[float, float]) -> np.ndarray:
+    """var = k / (SNR^2 H) + 1/12 (cells^2) per peak; (y, x) Hessian -> (x, y) covariance."""
+    cov = np.zeros((3, 3))
+    floor = p.floor_cells ** 2
+    snr_t = max(snr_t, 1.0)
+    hxy = np.array([[h[1, 1], h[0, 1]], [h[1, 0], h[0, 0]]])  # to (x, y) order
+    w, v = np.linalg.eigh(0.5 * (hxy + hxy.T))
+    w = np.maximum(w, 0.05)  # a flat direction: at most 20 cells^2 / (k / SNR^2)
+    cxy = (v / w) @ v.T * (p.k_translation / snr_t ** 2) + np.eye(2) * floor
+    cov[:2, :2] = cxy * p.cell_m ** 2
+    if p.along_frac > 0 and math.hypot(*t_xy) > 0:
+        u = np.asarray(t_xy) / math.hypot(*t_xy)
+        cov[:2, :2] += np.outer(u, u) * (p.along_frac * math.hypot(*t_xy)) ** 2
+    bin_rad = 2 * math.pi / p.angles
+    curv = max(curv_r, 0.05)
+    cov[2, 2] = (p.k_rotation / max(snr_r, 1.0) ** 2 / curv + floor) * bin_rad ** 2
+    return cov
