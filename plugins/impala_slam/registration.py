@@ -44,6 +44,10 @@ class FmtComponent(Component):
     angles = Param(int, default=720, ge=90, doc="rows of the polar spectrum over 360 deg (rotation bins)")
     refine_deg = Param(float, default=0.5, ge=0,
                        doc="rotation refined on the translation peak by steps of this (0: Algorithm 1 as written)")
+    along_frac = Param(float, default=0.01, ge=0,
+                       doc="covariance: std along the translation per metre (odometer scale in the images)")
+    rot_frac = Param(float, default=0.02, ge=0, doc="covariance: rotation std per radian turned")
+    rot_floor_deg = Param(float, default=0.05, ge=0, doc="covariance: rotation std the peaks never see")
     min_snr = Param(float, default=6.0, gt=0, doc="translation peak SNR under which a registration fails")
     linear_power = Param(bool, default=True, doc="the images hold power (False: already in dB)")
 
@@ -51,7 +55,8 @@ class FmtComponent(Component):
         return FmtParams(cell_m=self.cell_m, size=self.size, range_min_m=self.range_min_m,
                          range_max_m=self.range_max_m, taper_m=self.taper_m,
                          db_floor_quantile=self.threshold_quantile, min_snr=self.min_snr,
-                         angles=self.angles, refine_deg=self.refine_deg)
+                         angles=self.angles, refine_deg=self.refine_deg,
+                         along_frac=self.along_frac, rot_frac=self.rot_frac, rot_floor_deg=self.rot_floor_deg)
 
 
 class FmtRegistration(FmtComponent):

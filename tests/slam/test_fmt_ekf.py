@@ -274,7 +274,14 @@ def test_fmt_covariance_is_consistent_on_simulated_turns(tmp_path):
         nees.append(float(e @ np.linalg.solve(c.cov_xyt, e)))
         err.append(math.hypot(e[0], e[1]))
     assert len(nees) >= 35
-    assert 1.5 <= float(np.mean(nees)) <= 6.0, np.mean(nees)
+    nees = np.array(nees)
+    # chi^2 with 3 dof: median 2.37, mean 3, 95 % under 7.81. The errors have heavier tails
+    # than a Gaussian (sharp turns): the median is the robust check, the mean a loose one
+    print(f"\nFMT NEES on campus-loop seed 7: median {np.median(nees):.2f}, mean {nees.mean():.2f}, "
+          f"{100 * np.mean(nees < 7.81):.0f} % under 7.81")
+    assert 0.5 * 2.37 <= float(np.median(nees)) <= 2.0 * 2.37
+    assert 1.5 <= float(nees.mean()) <= 8.0
+    assert float(np.mean(nees < 7.81)) >= 0.8
     assert float(np.median(err)) < 0.1
 
 
@@ -307,3 +314,64 @@ def test_pose_output_has_covariance(loop_run):
     poses = [m.data for m in _read(out / "fmt_ekf.mcap", ["ekf/pose"])]
     assert all(isinstance(p, Pose2D) and p.cov_xyt.shape == (3, 3) for p in poses)
     assert all(np.all(np.linalg.eigvalsh(p.cov_xyt) >= -1e-12) for p in poses)
+
+
+def _arc_samples(with_pose: bool):
+    """A curving drive at 4 m/s through a random world; images (1 Hz) with or without the
+    odometry pose, and a 10 Hz odometry Pose2D stream (1 % scale error, a gyro bias)."""
+    rng = np.random.default_rng(21)
+    world = SyntheticWorld.random(rng, (-80, 130), (-70, 140), density_per_m2=0.04, n_clusters=30)
+    samples, truth = [], []
+    pose, odom = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    for k in range(250):  # 0.1 s steps
+        if k:
+            step = (0.4, 0.0, math.radians(0.6))
+            pose = compose(pose, step)
+            odom = compose(odom, (0.4 * 1.01, 0.0, math.radians(0.6) + math.radians(0.02)))
+        t = k * 100_000_000
+        samples.append((t, "odom", Pose2D(*odom, frame="odom")))
+        if k % 10 == 0:
+            truth.append(pose)
+            samples.append((t, "image", world.render(pose, rng, cell_m=0.25, radius_m=50.0,
+                                                      odom=odom if with_pose else None)))
+    return samples, truth
+
+
+@pytest.mark.parametrize("odometry", ["input", "none"])
+def test_ekf_with_an_odometry_input_or_none_at_all(odometry):
+    samples, truth = _arc_samples(with_pose=False)
+    if odometry == "none":
+        samples = [s for s in samples if s[1] == "image"]
+    ekf = EkfSlam("ekf", registration="internal", size=256, cell_m=0.4, loop_candidates=0)
+    sink = CollectingSink("sink", ports=["pose"])
+    conns = ["src.image -> ekf.image", "ekf.pose -> sink.pose"]
+    if odometry == "input":
+        conns.append("src.odom -> ekf.odometry")
+    run_components(ScriptedSource("src", samples), ekf, sink, connections=conns)
+    s = ekf.summary()
+    assert s["turns"] == len(truth)
+    assert s["no_odometry"] == (0 if odometry == "input" else len(truth) - 1)
+    # a registration fails (weak peak) or is refused by the gate now and then in this sparse world
+    assert s["registrations"] >= 0.85 * (len(truth) - 1)
+    assert s["registrations"] + s["registrations_refused"] + s["registration_failures"] == len(truth) - 1
+    est = sink.values("pose")[-1]
+    err = math.hypot(est.x_m - truth[-1][0], est.y_m - truth[-1][1])
+    # the FMT's own per-pair errors here (0.06 m, 0.18 deg rms) allow about 1 % over 96 m;
+    # the odometry alone (1 % scale, 0.2 deg/s gyro bias) ends 4 m off
+    odo = [d for _, p, d in samples if p == "odom"]
+    odo_err = math.hypot(odo[-1].x_m - truth[-1][0], odo[-1].y_m - truth[-1][1]) if odo else None
+    assert err < 1.5
+    if odo_err is not None:
+        assert err < 0.5 * odo_err
+
+
+def test_ekf_registers_with_the_last_few_images():
+    samples, truth = _arc_samples(with_pose=True)
+    samples = [s for s in samples if s[1] == "image"]
+    ekf = EkfSlam("ekf", registration="internal", size=256, cell_m=0.4, loop_candidates=0, register_last=3)
+    run_components(ScriptedSource("src", samples), ekf, connections=["src.image -> ekf.image"])
+    s = ekf.summary()
+    n = len(truth)
+    tried = s["registrations"] + s["registrations_refused"] + s["registration_failures"]
+    assert tried == (n - 1) + (n - 2) + (n - 3)
+    assert s["registrations"] >= 0.85 * tried
