@@ -12,7 +12,9 @@ its iterations), the last one the final estimate. At the end:
   final estimate's position error along the path;
 - ``metrics.json`` / ``report.md``: per estimate ``N_ate_rmse_m``, ``N_ate_pct`` (of the
   truth's path length), ``N_final_err_m``, ``N_mean_err_m``, ``N_max_err_m``,
-  ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``; ``path_length_m``; the baseline's
+  ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``, ``N_end_to_end_err_m`` (the last
+  pose seen from the first against the truth's: no alignment, the drift a loop closure
+  removes); ``path_length_m``; the baseline's
   ``baseline_ate_rmse_m`` and ``baseline_final_err_m``.
 
 ``align``: ``first`` (the seed's: the truth moved so its pose at the first estimated pose's
@@ -38,6 +40,13 @@ __all__ = ["TrajectoryComparison"]
 
 _COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
 _MAX_ROWS = 5_000_000
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Position of pose b in the frame of pose a."""
+    c, s = np.cos(a[2]), np.sin(a[2])
+    d = b[:2] - a[:2]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
 
 
 class TrajectoryComparison(Component):
@@ -132,6 +141,9 @@ class TrajectoryComparison(Component):
                         f"{name}_poses_outside_truth": int((~inside).sum())})
             if path > 0:
                 out[f"{name}_ate_pct"] = round(100.0 * ate / path, 4)
+            # alignment-free: the last pose seen from the first, against the truth's (loop drift)
+            e0, e1, g0, g1 = x_f[inside][0], x_f[inside][-1], truth[inside][0], truth[inside][-1]
+            out[f"{name}_end_to_end_err_m"] = round(float(np.hypot(*(_rel(e0, e1) - _rel(g0, g1)))), 4)
             # per iteration: (a) error vs truth, (b) distance to the final estimate
             keep = its if sum(len(s.t_ns) for s in its) <= _MAX_ROWS else \
                 [its[i] for i in np.unique(np.linspace(0, len(its) - 1, 1000).astype(int))]
@@ -217,16 +229,16 @@ class TrajectoryComparison(Component):
             if a.get_lines():
                 a.legend(loc="best", frameon=False, fontsize=8)
         fig.savefig(folder / "convergence.png")
-        rows = ["| estimate | ATE RMSE (m) | ATE (% of path) | final error (m) | mean error (m) | iterations | poses |",
-                "|---|---|---|---|---|---|---|"]
+        rows = ["| estimate | ATE RMSE (m) | ATE (% of path) | final error (m) | end to end (m) | mean error (m) "
+                "| iterations | poses |", "|---|---|---|---|---|---|---|---|"]
         f = self.figures
         for n in names:
             rows.append(f"| {titles[n]} | {f[f'{n}_ate_rmse_m']:.3f} | {f.get(f'{n}_ate_pct', float('nan')):.3f} | "
-                        f"{f[f'{n}_final_err_m']:.3f} | {f[f'{n}_mean_err_m']:.3f} | {f[f'{n}_iterations']} | "
-                        f"{f[f'{n}_poses']} |")
+                        f"{f[f'{n}_final_err_m']:.3f} | {f[f'{n}_end_to_end_err_m']:.3f} | "
+                        f"{f[f'{n}_mean_err_m']:.3f} | {f[f'{n}_iterations']} | {f[f'{n}_poses']} |")
         if "baseline_ate_rmse_m" in f:
             rows.append(f"| {self.baseline_title} | {f['baseline_ate_rmse_m']:.3f} | | {f['baseline_final_err_m']:.3f}"
-                        " | | | |")
+                        " | | | | |")
         text = [f"# {self.title}", "", f"Truth path length: {f.get('path_length_m', 0):.1f} m; "
                 f"{self.align} alignment.", "", *rows, "",
                 "![final trajectories (seed 2, Fig. 8)](trajectories.png)", "",

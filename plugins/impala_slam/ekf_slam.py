@@ -100,7 +100,7 @@ class EkfSlam(FmtComponent):
     loop_candidates = Param(int, default=2, ge=0, doc="candidates registered per turn (0: no loop closure)")
     loop_chi2 = Param(float, default=11.34, gt=0, doc="innovation gate of a loop closure (chi^2, 3 dof)")
     loop_cov_scale = Param(float, default=2.0, ge=1,
-                           doc="a loop registration's covariance is multiplied by this (views metres and minutes apart)")
+                           doc="loop registrations: covariance x this (views metres and minutes apart)")
     loop_min_snr = Param(float, default=8.0, gt=0, doc="loop registrations with a weaker peak are refused")
 
     @classmethod

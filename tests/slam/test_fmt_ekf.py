@@ -242,6 +242,8 @@ def test_campus_loop_closes_and_matches_smoother(loop_run):
     assert abs(ates["posegraph_lm/trajectory"] - ates["posegraph/trajectory"]) <= 0.05
     metrics = yaml.safe_load((out / "metrics.json").read_text())
     assert metrics["ekf_final_err_m"] <= 0.5
+    assert metrics["ekf_end_to_end_err_m"] <= 0.5  # the last pose seen from the first: the loop is closed
+    assert metrics["baseline_final_err_m"] > 5.0  # odometer + gyro did not close it
     for f in ("trajectories.png", "convergence.png", "report.md", "online/metrics.json"):
         assert (out / f).exists(), f
 
@@ -375,3 +377,23 @@ def test_ekf_registers_with_the_last_few_images():
     tried = s["registrations"] + s["registrations_refused"] + s["registration_failures"]
     assert tried == (n - 1) + (n - 2) + (n - 3)
     assert s["registrations"] >= 0.85 * tried
+
+
+def test_pose_graph_fed_by_the_fmt_component_alone():
+    """Any front end feeds slam.PoseGraph: here slam.FmtRegistration's transforms, no EKF.
+    With only a chain of constraints the smoothed trajectory is the chained transforms."""
+    from impala_slam.registration import FmtRegistration
+
+    samples, truth = _arc_samples(with_pose=True)
+    samples = [s for s in samples if s[1] == "image"]
+    fmt = FmtRegistration("fmt", size=256, cell_m=0.4)
+    pg = PoseGraph("pg", solver="isam2", trajectory_period_s=1000.0)
+    sink = CollectingSink("sink", ports=["chain", "graph"])
+    run_components(ScriptedSource("src", samples), fmt, pg, sink,
+                   connections=["src.image -> fmt.image", "fmt.transform -> pg.constraints",
+                                "fmt.pose -> sink.chain", "pg.trajectory -> sink.graph"])
+    chain = np.array([[p.x_m, p.y_m, p.theta_rad] for p in sink.values("chain")])
+    smoothed = np.asarray(sink.values("graph")[-1].xyt)
+    assert pg.summary()["nodes"] == len(truth)
+    np.testing.assert_allclose(smoothed[:, :2], chain[:, :2], atol=1e-6)
+    assert math.hypot(*(smoothed[-1, :2] - np.array(truth[-1][:2]))) < 1.5
