@@ -12,7 +12,7 @@ Per radar image (one turn):
    gyro's bias are not white, which is why Q is wider than their noise).
 2. **Registration** with the previous image: the FMT transform and its covariance (from
    the ``registration`` input, i.e. ``slam.FmtRegistration`` upstream, or computed here
-   with ``registration: internal``); an EKF update of T_{n-1,n}, gated by chi^2 (3 dof)
+   with ``registrations: internal``); an EKF update of T_{n-1,n}, gated by chi^2 (3 dof)
    so a wrong registration never enters. With ``register_last`` > 1 the image is also
    registered with the few images before (more constraints, more FMT time).
 3. **Loop closure**: keyframes (an image kept every ``keyframe_m`` of travel) at least
@@ -45,6 +45,7 @@ import numpy as np
 
 from impala_flow.component import Input, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D, Trajectory2D
+from impala_flow.ports import OutOfHistory
 
 from .ekf_core import PoseEkf
 from .fmt import FmtImage, FmtParams, polar_spectrum, prepare, register
@@ -81,7 +82,7 @@ class EkfSlam(FmtComponent):
     trajectory_timer = Periodic("trajectory_period_s")
     map_timer = Periodic("map_period_s")
 
-    registration = Param(str, default="input", choices=("input", "internal"),
+    registrations = Param(str, default="input", choices=("input", "internal"),
                          doc="consecutive registrations from the 'registration' input (slam.FmtRegistration) "
                              "or computed here")
     trajectory_period_s = Param(float, default=10.0, gt=0, doc="period of the trajectory output (s)")
@@ -107,7 +108,7 @@ class EkfSlam(FmtComponent):
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
         ins = dict(cls.__inputs__)
         outs = dict(cls.__outputs__)
-        if params.get("registration", "input") == "input":
+        if params.get("registrations", "input") == "input":
             ins["image"] = Input(Grid, sync="turn", maxsize=64, doc="panoramic image, vehicle frame, pose = odometry")
             ins["registration"] = Input(RelativePose2D, sync="turn", maxsize=64,
                                         doc="FMT transform from the previous image (slam.FmtRegistration)")
@@ -146,22 +147,22 @@ class EkfSlam(FmtComponent):
         grid: Grid = self.inputs["image"].take()
         reg: RelativePose2D | None = self.inputs["registration"].take() if "registration" in self.inputs else None
         t_step = time.perf_counter()
-        odom = self._odometry(t, grid)
+        inc = self._increment(t, grid)
         t0 = time.perf_counter()
         cur = prepare(grid, self.params_fmt, self.linear_power)
         self.fmt_s += time.perf_counter() - t0
         self.counts["turns"] += 1
         if self.ekf is None:
             self.ekf = PoseEkf()
-            self._after_step(t, cur, odom, t_step)
+            self._after_step(t, cur, grid, t_step)
             return
         ekf = self.ekf
         # 1. augmentation by the odometry increment
-        inc = between(self._prev_odom, odom) if (odom is not None and self._prev_odom is not None) else None
-        if inc is None:  # no odometry: constant velocity, the last estimated increment again
+        guessed = inc is None
+        if guessed:  # no odometry: constant velocity, the last estimated increment again
             self.counts["no_odometry"] += 1
             inc = ekf.relative_pose(ekf.n - 2, ekf.n - 1) if ekf.n >= 2 else (0.0, 0.0, 0.0)
-        q = self._odometry_cov(inc, no_odometry=odom is None)
+        q = self._odometry_cov(inc, no_odometry=guessed)
         t0 = time.perf_counter()
         j = ekf.augment(inc, q)
         self.filter_s += time.perf_counter() - t0
@@ -188,7 +189,7 @@ class EkfSlam(FmtComponent):
                 self._observe(i, j, r.xyt, r.cov_xyt, t, self.registration_chi2, "registration")
             else:
                 self.counts["registration_failures"] += 1
-        self._after_step(t, cur, odom, t_step, inc)
+        self._after_step(t, cur, grid, t_step, inc)
         # 3. loop closure
         if self.loop_candidates > 0:
             self._close_loops(t, j, cur)
@@ -196,7 +197,7 @@ class EkfSlam(FmtComponent):
         x, y, th = ekf.pose(j)
         self.pose.emit(t, Pose2D(x, y, th, ekf.cov(j), "map"))
 
-    def _after_step(self, t: int, cur: FmtImage, odom: Pose | None, t_step: float,
+    def _after_step(self, t: int, cur: FmtImage, grid: Grid, t_step: float,
                     inc: Pose | None = None) -> None:
         ekf = self.ekf
         assert ekf is not None
@@ -204,8 +205,8 @@ class EkfSlam(FmtComponent):
         self.t_ns.append(t)
         step = 0.0 if inc is None else math.hypot(inc[0], inc[1])
         self.travel_m.append((self.travel_m[-1] if self.travel_m else 0.0) + step)
-        if odom is not None:
-            self._prev_odom = odom
+        gp = grid.pose
+        self._prev_odom = None if gp is None else (gp.x_m, gp.y_m, gp.theta_rad)
         self._prev = cur
         self._recent = [*self._recent, (j, cur)][-self.register_last:]
         last_kf = max(self.keyframes) if self.keyframes else None
@@ -216,14 +217,21 @@ class EkfSlam(FmtComponent):
             x, y, th = ekf.pose(0)
             self.pose.emit(t, Pose2D(x, y, th, ekf.cov(0), "map"))
 
-    def _odometry(self, t: int, grid: Grid) -> Pose | None:
+    def _increment(self, t: int, grid: Grid) -> Pose | None:
+        """The odometry's motion since the previous image: the ``odometry`` input at both
+        image times when it is connected, else the two images' own poses; None if missing."""
         port = self.inputs["odometry"]
         if port.latest() is not None:
-            p = port.at(t, clamp=True)
-            return (p.x_m, p.y_m, p.theta_rad)
-        if grid.pose is not None:
-            return (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad)
-        return None
+            if not self.t_ns:
+                return None
+            try:
+                a, b = port.at(self.t_ns[-1]), port.at(t)
+            except OutOfHistory:  # the odometry stopped, lags or started late: this turn goes without
+                return None
+            return between((a.x_m, a.y_m, a.theta_rad), (b.x_m, b.y_m, b.theta_rad))
+        if grid.pose is None or self._prev_odom is None:
+            return None
+        return between(self._prev_odom, (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad))
 
     def _odometry_cov(self, inc: Pose, no_odometry: bool) -> np.ndarray:
         d = math.hypot(inc[0], inc[1])
