@@ -231,6 +231,17 @@ class Periodic:
         return max(1, int(round(float(p) * 1e9)))
 
 
+def _refuse_shared_names(owner: str, *tables: dict) -> None:
+    """A port, a parameter and a timer may not share a name: ``self.<name>`` would be
+    whichever the instance set last (a parameter silently read as a port)."""
+    seen: dict[str, int] = {}
+    for i, table in enumerate(tables):
+        for name in table:
+            if name in seen and seen[name] != i:
+                raise TypeError(f"{owner}: '{name}' names two things (a port, a parameter or a timer); rename one")
+            seen[name] = i
+
+
 class Component:
     """Base class of every processing component (see the module docstring)."""
 
@@ -265,6 +276,7 @@ class Component:
             if name in _RESERVED:
                 raise TypeError(f"{cls.__name__}.{name}: a port, parameter or timer may not be named "
                                 f"'{name}', which Component itself uses")
+        _refuse_shared_names(cls.__name__, ins, outs, params, timers)
         cls.__inputs__, cls.__outputs__, cls.__params__, cls.__timers__ = ins, outs, params, timers
 
     @classmethod
@@ -306,6 +318,8 @@ class Component:
         self.log = log.getChild(self.name)
         self._clock_ns: Callable[[], int] = time.monotonic_ns
         ins, outs = self.declare_ports(values)
+        _refuse_shared_names(f"component '{self.name}' ({type(self).__name__})", ins, outs, self.__params__,
+                             self.__timers__)
         self.inputs: dict[str, InputPort] = {k: InputPort(self, k, d) for k, d in ins.items()}
         self.outputs: dict[str, OutputPort] = {k: OutputPort(self, k, d) for k, d in outs.items()}
         for k, port in (*self.inputs.items(), *self.outputs.items()):

@@ -72,8 +72,10 @@ def _dequantise(q: np.ndarray) -> np.ndarray:
 
 
 class EkfSlam(FmtComponent):
-    """Trajectory-oriented EKF-SLAM: every pose in the state, FMT registrations and loop
-    closures as observations (see the module docstring)."""
+    """Trajectory-oriented EKF-SLAM with FMT registrations and loop closures (seed 2).
+
+    Every pose is in the state; registrations of consecutive images and of old keyframes
+    (loop closures) are its observations (see the module docstring)."""
 
     pose = Output(Pose2D, doc="newest pose in the map frame, with its 3x3 covariance")
     trajectory = Output(Trajectory2D, doc="every pose after the last update")

@@ -102,3 +102,24 @@ def test_scale_end_to_end_with_testing_helpers():
     run_components(src, Scale("s", gain=4.0), sink, connections=["src.out -> s.x", "s.y -> sink.x"])
     assert sink.values() == [4.0, 10.0] and sink.times() == [0, 10]
     assert np.all(np.diff(sink.times()) > 0)
+
+
+def test_a_port_and_a_parameter_may_not_share_a_name():
+    """self.<name> would be the port or the parameter depending on the order of set-up."""
+
+    class Dynamic(Component):
+        gain = Param(float, default=1.0)
+
+        @classmethod
+        def declare_ports(cls, params):
+            return {"gain": Input(float)}, {"y": Output(float)}
+
+    with pytest.raises(TypeError, match="component 'c' \\(Dynamic\\): 'gain' names two things"):
+        Dynamic("c")
+
+    class Static(Component):
+        x = Input(float)
+
+    with pytest.raises(TypeError, match="Both: 'x' names two things"):
+        class Both(Static):  # noqa: F841
+            x = Param(float, default=0.0)
