@@ -15,7 +15,10 @@
   and :meth:`PoseEkf.update` returns the innovation's chi^2 so the caller decides.
 
 P lives in a pre-allocated square array that doubles when full (no copy per step). The
-update is applied in row blocks so no n x n temporary is allocated.
+update is applied in row blocks so no n x n temporary is allocated. Memory is the limit:
+3n x 3n doubles, 72 MB at 1 000 poses and 300 MB of capacity once past 1 024; for missions
+of thousands of poses the pose graph (``slam.PoseGraph``) is the tool, the EKF the seed's
+baseline (bench/fmt_ekf.py: 7.6 ms per step at 1 000 poses on one core).
 """
 
 from __future__ import annotations
