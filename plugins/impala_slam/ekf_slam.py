@@ -124,14 +124,15 @@ class EkfSlam(FmtComponent):
         self.params_fmt: FmtParams = self.fmt_params()
         self.ekf: PoseEkf | None = None
         self.t_ns: list[int] = []
+        self._index: dict[int, int] = {}  # image time -> pose index
         self.travel_m: list[float] = []
-        self.keyframes: dict[int, np.ndarray] = {}  # pose index -> registration image (float16)
+        self.keyframes: dict[int, np.ndarray] = {}  # pose index -> registration image (uint8 dB steps)
         self._prev: FmtImage | None = None
         self._recent: list[tuple[int, FmtImage]] = []  # (pose index, image) of the last register_last images
         self._prev_odom: Pose | None = None
         self.counts = dict(turns=0, registrations=0, registration_failures=0, registrations_refused=0,
                            loop_candidates_tried=0, loop_closures=0, loop_rejected_gate=0, loop_rejected_weak=0,
-                           no_odometry=0)
+                           no_odometry=0, registrations_unmatched=0)
         self.fmt_s = 0.0
         self.filter_s = 0.0
         self.step_ms: list[tuple[int, float]] = []  # (poses, ms of the whole step)
@@ -170,6 +171,7 @@ class EkfSlam(FmtComponent):
         self.filter_s += time.perf_counter() - t0
         self.constraints.emit(t, RelativePose2D(self.t_ns[-1], t, *inc, q, "odometry"))
         # 2. registration with the previous image
+        i = j - 1
         if reg is None or reg.kind == "start":
             t0 = time.perf_counter()
             r = register(self._prev, cur, self.params_fmt, prior_theta_rad=inc[2])
@@ -177,8 +179,17 @@ class EkfSlam(FmtComponent):
             z, rcov, ok = r.xyt, r.cov_xyt, r.ok
         else:
             z, rcov, ok = (reg.x_m, reg.y_m, reg.theta_rad), np.asarray(reg.cov_xyt), reg.kind == "registration"
+            if reg.from_t_ns != self.t_ns[-1]:  # an image the registration saw and this filter did not
+                found = self._index.get(reg.from_t_ns)
+                if found is None:
+                    self.counts["registrations_unmatched"] += 1
+                    self.log.warning("registration from t=%d ns matches no pose (t=%d ns): ignored",
+                                     reg.from_t_ns, t)
+                    ok = False
+                else:
+                    i = found
         if ok:
-            self._observe(j - 1, j, z, rcov, t, self.registration_chi2, "registration")
+            self._observe(i, j, z, rcov, t, self.registration_chi2, "registration")
         else:
             self.counts["registration_failures"] += 1
             self.constraints.emit(t, RelativePose2D(self.t_ns[-1], t, 0.0, 0.0, 0.0, UNKNOWN_COV.copy(), "failed"))
@@ -205,6 +216,7 @@ class EkfSlam(FmtComponent):
         assert ekf is not None
         j = ekf.n - 1
         self.t_ns.append(t)
+        self._index[t] = j
         step = 0.0 if inc is None else math.hypot(inc[0], inc[1])
         self.travel_m.append((self.travel_m[-1] if self.travel_m else 0.0) + step)
         gp = grid.pose
@@ -247,17 +259,16 @@ class EkfSlam(FmtComponent):
         ekf = self.ekf
         assert ekf is not None
         _, _, chi2 = ekf.innovation(i, j, z, r)
+        t_j = self.t_ns[j] if j < len(self.t_ns) else t  # j is the newest pose: not listed yet
         if not math.isfinite(chi2) or chi2 > gate:
             self.counts["registrations_refused" if kind == "registration" else "loop_rejected_gate"] += 1
-            self.constraints.emit(t, RelativePose2D(self.t_ns[i], self.t_ns[j] if j < len(self.t_ns) else t,
-                                                    *z, r, f"{'registration' if kind == 'registration' else 'loop'}"
-                                                    "_rejected"))
+            self.constraints.emit(t, RelativePose2D(self.t_ns[i], t_j, *z, r, f"{kind}_rejected"))
             return False
         t0 = time.perf_counter()
         ekf.update(i, j, z, r)
         self.filter_s += time.perf_counter() - t0
         self.counts["registrations" if kind == "registration" else "loop_closures"] += 1
-        self.constraints.emit(t, RelativePose2D(self.t_ns[i], self.t_ns[j] if j < len(self.t_ns) else t, *z, r, kind))
+        self.constraints.emit(t, RelativePose2D(self.t_ns[i], t_j, *z, r, kind))
         return True
 
     def _close_loops(self, t: int, j: int, cur: FmtImage) -> None:
@@ -271,7 +282,6 @@ class EkfSlam(FmtComponent):
         s = cov[:, :2, :2] + np.eye(2) * self.loop_radius_m ** 2
         m2 = np.einsum("ki,kij,kj->k", z[:, :2], np.linalg.inv(s), z[:, :2])
         order = np.argsort(m2)
-        cur_polar = None
         for o in order[: self.loop_candidates]:
             if m2[o] > CHI2_2DOF_99:
                 break
@@ -280,9 +290,7 @@ class EkfSlam(FmtComponent):
             t0 = time.perf_counter()
             img = _dequantise(self.keyframes[i])
             old = FmtImage(img, polar_spectrum(img, self.params_fmt), self.params_fmt.cell_m)
-            if cur_polar is None:
-                cur_polar = cur
-            r = register(old, cur_polar, self.params_fmt, prior_theta_rad=float(z[o, 2]))
+            r = register(old, cur, self.params_fmt, prior_theta_rad=float(z[o, 2]))
             self.fmt_s += time.perf_counter() - t0
             if not r.ok or r.snr_translation < self.loop_min_snr:
                 self.counts["loop_rejected_weak"] += 1

@@ -202,7 +202,7 @@ def polar_spectrum(img: np.ndarray, p: FmtParams) -> np.ndarray:
     spec *= _high_pass(img.shape[0])
     n = img.shape[0]
     radii = n // 2
-    polar = cv2.warpPolar(spec, (radii, p.angles), (n / 2.0, n / 2.0), radii,
+    polar = cv2.warpPolar(spec, (radii, p.angles), (float(n // 2), float(n // 2)), radii,  # the DC bin
                           cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
     lo, hi = int(p.band[0] * n), int(p.band[1] * n)  # radius of f cycles/cell = f * n pixels
     band = polar[:, lo:hi]
