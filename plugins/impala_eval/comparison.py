@@ -5,7 +5,9 @@ Each estimate arrives on its own input (named by ``estimates``) as ``Trajectory2
 one sample = one iteration (the EKF and iSAM2 every turn or period, batch LM after each of
 its iterations), the last one the final estimate. At the end:
 
-- Fig. 8 (``trajectories.png``): the final trajectories with the truth (and the baseline);
+- Fig. 8 (``trajectories.png``): the final trajectories with the truth (and the baseline),
+  over the radar map of the optional ``map`` input (the seed's Figs. 5 and 7), which lies in
+  the first estimate's frame and is moved by that estimate's alignment;
 - Fig. 9 (``convergence.png``): (a) the average position error of each iteration's poses
   against the truth; (b) the rate of convergence: the mean distance between each
   iteration's poses and the final estimate of the same poses (0 at the last one); (c) the
@@ -31,10 +33,10 @@ from typing import Any
 import numpy as np
 
 from impala_flow.component import Component, Input, Output, Param
-from impala_flow.msgs import Pose2D, Trajectory2D
+from impala_flow.msgs import Grid, Pose2D, Trajectory2D
 
 from .metrics import align_first, apply_rigid, distance_travelled_m, interpolate_truth, path_length_m, rigid_align_2d
-from .report import _figure
+from .report import _figure, _show_map
 
 __all__ = ["TrajectoryComparison"]
 
@@ -54,6 +56,8 @@ class TrajectoryComparison(Component):
 
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
     baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a pose stream drawn beside (dead reckoning)")
+    map = Input(Grid, policy="sampling", required=False,
+                doc="a radar map in the frame of the first estimate (dB), drawn under Fig. 8")
 
     estimates = Param(list, default=["ekf", "isam2", "lm"], doc="one Trajectory2D input per name")
     titles = Param(list, default=[], doc="names in the figures (default: the input names)")
@@ -95,7 +99,7 @@ class TrajectoryComparison(Component):
         elif self.trigger == "baseline":
             self.base_t.append(s.timestamp)
             self.base_xyt.append((d.x_m, d.y_m, d.theta_rad))
-        else:
+        elif self.trigger in self.samples:
             self.samples[self.trigger].append(d)
 
     # --- metrics ----------------------------------------------------------------------
@@ -111,6 +115,7 @@ class TrajectoryComparison(Component):
         self._done = True
         out: dict[str, Any] = {}
         self.curves: dict[str, dict[str, np.ndarray]] = {}
+        self._map_transform: tuple[np.ndarray, np.ndarray] | None = None
         if len(self.truth_t) < 2:
             self.log.warning("fewer than two truth poses: nothing to compare")
             return out
@@ -130,6 +135,8 @@ class TrajectoryComparison(Component):
                 self.log.warning("estimate %s lies outside the truth's time span", name)
                 continue
             al = apply_rigid(r, tr, x_f[inside])
+            if self._map_transform is None:  # the map lies in the first estimate's frame
+                self._map_transform = (r, tr)
             err = np.hypot(*(al[:, :2] - truth[inside, :2]).T)
             path = path_length_m(truth[inside, :2])
             span = max(span, path)
@@ -193,6 +200,9 @@ class TrajectoryComparison(Component):
         # Fig. 8
         fig = _figure(7.5, 6.5)
         ax = fig.add_subplot()
+        radar_map = self.inputs["map"].latest()
+        if radar_map is not None and self._map_transform is not None:
+            _show_map(ax, radar_map.data, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
         ax.plot(*self._truth_xy.T, color="k", lw=0.8, label="truth (RTK-GPS)")
         if "_baseline" in self.curves:
             ax.plot(*self.curves["_baseline"]["xy"].T, "--", color="0.55", lw=1.0, label=self.baseline_title)
