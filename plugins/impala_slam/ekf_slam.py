@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from typing import Any
 
 import numpy as np
@@ -95,6 +96,8 @@ class EkfSlam(FmtComponent):
     odo_sigma_rot_frac = Param(float, default=0.03, ge=0, doc="odometry: heading std per radian turned")
     register_last = Param(int, default=1, ge=1,
                           doc="register each image with this many previous images (1: the previous one only)")
+    odometry_wait = Param(int, default=4, ge=0,
+                          doc="images held at most while the odometry input catches up with their time")
     registration_chi2 = Param(float, default=16.27, gt=0,
                               doc="consecutive registrations beyond this chi^2 (3 dof) are refused")
     keyframe_m = Param(float, default=4.0, gt=0, doc="travel between two images kept for loop closure")
@@ -130,6 +133,7 @@ class EkfSlam(FmtComponent):
         self._prev: FmtImage | None = None
         self._recent: list[tuple[int, FmtImage]] = []  # (pose index, image) of the last register_last images
         self._prev_odom: Pose | None = None
+        self._pending: deque[tuple[int, Grid, RelativePose2D | None]] = deque()  # images waiting for odometry
         self.counts = dict(turns=0, registrations=0, registration_failures=0, registrations_refused=0,
                            loop_candidates_tried=0, loop_closures=0, loop_rejected_gate=0, loop_rejected_weak=0,
                            no_odometry=0, registrations_unmatched=0)
@@ -149,6 +153,25 @@ class EkfSlam(FmtComponent):
             return
         grid: Grid = self.inputs["image"].take()
         reg: RelativePose2D | None = self.inputs["registration"].take() if "registration" in self.inputs else None
+        self._pending.append((t, grid, reg))
+        self._drain(final=False)
+
+    def _drain(self, final: bool) -> None:
+        """Process the waiting images whose odometry has arrived. An odometry stream is
+        often stamped before it is produced (DistortionOdometry stamps a turn's motion at
+        its start, a turn later): an image waits until the odometry passes its time, at most
+        ``odometry_wait`` images (then it goes without, counted)."""
+        port = self.inputs["odometry"]
+        while self._pending:
+            t, grid, reg = self._pending[0]
+            if port.connected and not final and len(self._pending) <= self.odometry_wait:
+                last = port.latest()
+                if last is None or last.timestamp < t:
+                    return
+            self._pending.popleft()
+            self._turn(t, grid, reg)
+
+    def _turn(self, t: int, grid: Grid, reg: RelativePose2D | None) -> None:
         t_step = time.perf_counter()
         inc = self._increment(t, grid)
         t0 = time.perf_counter()
@@ -322,6 +345,7 @@ class EkfSlam(FmtComponent):
         return tm.to_grid("map")
 
     def flush(self, t: int) -> None:
+        self._drain(final=True)
         if self.ekf is None:
             return
         self._emit_trajectory(t)

@@ -399,3 +399,35 @@ def test_pose_graph_fed_by_the_fmt_component_alone():
     assert pg.summary()["nodes"] == len(truth)
     np.testing.assert_allclose(smoothed[:, :2], chain[:, :2], atol=1e-6)
     assert math.hypot(*(smoothed[-1, :2] - np.array(truth[-1][:2]))) < 1.5
+
+
+def test_navtech_graph_on_the_oxford_pairs(tmp_path):
+    """graphs/fmt_ekf_navtech.yaml on the real Oxford sample: DistortionOdometry as the EKF's
+    odometry (held images wait for it), FMT registrations; the EKF's consecutive poses
+    against the dataset's own pairs (gt/radar_odometry.csv, read by test_oxford's helper)."""
+    from ..datasets import oxford_sample_or_skip
+    from .test_oxford import _truth_rows
+
+    folder = oxford_sample_or_skip()
+    mission = tmp_path / "oxford.mcap"
+    assert main(["import", "oxford", str(folder), "-o", str(mission), "--no-progress"]) == 0
+    out = tmp_path / "out"
+    summary = tmp_path / "summary.json"
+    assert main(["run", str(ROOT / "graphs" / "fmt_ekf_navtech.yaml"), "--var", f"mission={mission}", "--var",
+                 f"out={out}", "--no-progress", "--summary-json", str(summary)]) == 0
+    ekf = yaml.safe_load(summary.read_text())["extra"]["ekf"]
+    assert ekf["no_odometry"] <= 2  # the odometry needs two turns to start
+    poses = {m.t_ns: (m.data.x_m, m.data.y_m, m.data.theta_rad)
+             for m in _read(out / "fmt_ekf_navtech.mcap", ["ekf/pose"])}
+    trans, rot = [], []
+    for t_src, (t_dst, x, y, yaw) in _truth_rows(folder).items():
+        a = [p for t, p in poses.items() if abs(t - t_dst) <= 1000]
+        b = [p for t, p in poses.items() if abs(t - t_src) <= 1000]
+        if a and b:
+            rel = between(a[0], b[0])
+            trans.append(math.hypot(rel[0] - x, rel[1] - y))
+            rot.append(abs(math.degrees(math.remainder(rel[2] - yaw, 2 * math.pi))))
+    assert len(trans) == 10
+    assert np.mean(trans) <= 0.10 and np.mean(rot) <= 0.25
+    for f in ("trajectories.png", "convergence.png", "online/pair_errors.png"):
+        assert (out / f).exists(), f
