@@ -1,93 +1,204 @@
 """``eval.TrajectoryComparison``: several SLAM back-ends side by side against the truth, as in
-seed 2 §VII (Figs. 8 and 9).
+seed 2 (Gérossier et al., trajectory-oriented EKF-SLAM with the Fourier-Mellin transform),
+Figs. 8 and 9.
 
-Each estimate arrives on its own input (named by ``estimates``) as ``Trajectory2D`` samples:
-one sample = one iteration (the EKF and iSAM2 every turn or period, batch LM after each of
-its iterations), the last one the final estimate. At the end:
+Each estimate arrives on its own input (one per name in ``estimates``) as ``Trajectory2D``
+samples: one sample = one iteration (the EKF and iSAM2 every period, the batch LM after
+each of its runs), a whole trajectory re-estimated each time, the last one the final
+estimate. The truth (``truth``, RTK-GPS) is interpolated at each pose's time; poses outside
+its span are dropped and counted. Everything is computed at stop() (truth stamped later
+than a trajectory may arrive after it). The report folder (``report``) holds:
 
-- Fig. 8 (``trajectories.png``): the final trajectories with the truth (and the baseline),
-  over the radar map of the optional ``map`` input (the seed's Figs. 5 and 7), which lies in
-  the first estimate's frame and is moved by that estimate's alignment;
-- Fig. 9 (``convergence.png``): (a) the average position error of each iteration's poses
+- ``trajectories.png`` (Fig. 8): the final trajectories with the truth and the ``baseline``
+  (dead reckoning), over the radar map of the optional ``map`` input (Figs. 5 and 7), which
+  lies in the first estimate's frame and is moved by that estimate's alignment;
+- ``convergence.png`` (Fig. 9): (a) the average position error of each iteration's poses
   against the truth; (b) the rate of convergence: the mean distance between each
-  iteration's poses and the final estimate of the same poses (0 at the last one); (c) the
-  final estimate's position error along the path;
-- ``metrics.json`` / ``report.md``: per estimate ``N_ate_rmse_m``, ``N_ate_pct`` (of the
-  truth's path length), ``N_final_err_m``, ``N_mean_err_m``, ``N_max_err_m``,
-  ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``, ``N_end_to_end_err_m`` (the last
-  pose seen from the first against the truth's: no alignment, the drift a loop closure
-  removes); ``path_length_m``; the baseline's
-  ``baseline_ate_rmse_m`` and ``baseline_final_err_m``.
+  iteration's poses and the final estimate's poses of the same times (0 at the last one);
+  (c) the final estimates' position error along the distance travelled;
+- ``metrics.json`` (what :meth:`TrajectoryComparison.summary` returns) and ``report.md``
+  (a table, the figures). Per estimate ``N``: ``N_ate_rmse_m``, ``N_ate_pct`` (of the
+  truth's path over the final trajectory's span), ``N_final_err_m``, ``N_mean_err_m``,
+  ``N_max_err_m``, ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``,
+  ``N_end_to_end_err_m`` (the last pose seen from the first against the truth's: no
+  alignment, the drift a loop closure removes); ``path_length_m`` (the longest final
+  trajectory's); the baseline's ``baseline_ate_rmse_m``, ``baseline_final_err_m``,
+  ``baseline_mean_err_m``, ``baseline_max_err_m``, ``baseline_end_to_end_err_m``,
+  ``baseline_ate_pct``, ``baseline_poses``, ``baseline_poses_outside_truth``. An estimate
+  that received nothing is left out.
 
-``align``: ``first`` (the seed's: the truth moved so its pose at the first estimated pose's
-time coincides with it) or ``rigid`` (least squares on the final trajectory's positions,
-the same transform applied to every iteration of that estimate).
+The per-iteration curves keep every sample's times and positions until stop(); beyond
+``MAX_ROWS`` poses in all (5e6, shared equally by the estimates) an estimate keeps every
+2nd, 4th, ... iteration and its last one, and report.md says so.
+
+``align``: ``first`` (the seed's: truth and estimate made to coincide, position and heading,
+at the first estimated pose's time) or ``rigid`` (least squares on the final trajectory's
+positions, rotation and translation). Either transform is computed once per estimate, on
+its final trajectory, and used for all its iterations; the estimates are moved into the
+truth's frame (the errors are those of the truth moved onto the estimate).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow.component import Component, Input, Output, Param, ParamError
 from impala_flow.msgs import Grid, Pose2D, Trajectory2D
 
-from .metrics import align_first, apply_rigid, distance_travelled_m, interpolate_truth, path_length_m, rigid_align_2d
-from .report import _figure, _show_map
+from .metrics import _rel, align_first, apply_rigid, distance_travelled_m, interpolate_truth, rigid_align_2d
+from .report import METRICS_FILE, _figure, _show_map
 
 __all__ = ["TrajectoryComparison"]
 
-_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
-_MAX_ROWS = 5_000_000
+_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
+#: poses kept for the per-iteration curves, over all iterations of all estimates (shared equally)
+MAX_ROWS = 5_000_000
+_BATCH_ROWS = 1 << 20  # poses interpolated at once for the per-iteration curves
+#: the metrics of each estimate N, as N_<key>
+_KEYS = ("ate_rmse_m", "ate_pct", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m", "iterations",
+         "poses", "poses_outside_truth")
 
 
-def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Position of pose b in the frame of pose a."""
-    c, s = np.cos(a[2]), np.sin(a[2])
-    d = b[:2] - a[:2]
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+def _sorted_by_time(t_ns: np.ndarray, xyt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    if len(t_ns) > 1 and np.any(np.diff(t_ns) < 0):
+        order = np.argsort(t_ns, kind="stable")
+        return t_ns[order], xyt[order]
+    return t_ns, xyt
+
+
+@dataclass
+class _Iterations:
+    """The samples of one estimate: every one counted, the latest whole, the rest kept (their
+    times and positions) for the per-iteration curves, evenly thinned beyond ``budget`` poses."""
+
+    budget: int = MAX_ROWS
+    received: int = 0
+    stride: int = 1  # every stride-th iteration is kept (1, 1 + stride, ...)
+    rows: int = 0
+    kept: list[tuple[int, np.ndarray, np.ndarray]] = field(default_factory=list)  # (iteration, t_ns, xy)
+    final: tuple[int, np.ndarray, np.ndarray] | None = None  # (iteration, t_ns, xyt)
+
+    def add(self, traj: Trajectory2D) -> bool:
+        """Store one sample; True when this one made the store thin its iterations."""
+        self.received += 1
+        t_ns = np.asarray(traj.t_ns, np.int64).reshape(-1)
+        xyt = np.asarray(traj.xyt, np.float64).reshape(-1, 3)
+        if len(t_ns) != len(xyt):
+            raise ValueError(f"Trajectory2D with {len(t_ns)} times and {len(xyt)} poses")
+        if len(t_ns) == 0:  # counted as an iteration, nothing to score
+            return False
+        t_ns, xyt = _sorted_by_time(t_ns, xyt)
+        self.final = (self.received, t_ns, xyt)
+        if (self.received - 1) % self.stride:
+            return False
+        self.kept.append((self.received, t_ns, np.ascontiguousarray(xyt[:, :2])))
+        self.rows += len(t_ns)
+        thinned = False
+        while self.rows > self.budget and len(self.kept) > 1:
+            self.kept = self.kept[::2]
+            self.stride *= 2
+            self.rows = sum(len(k[1]) for k in self.kept)
+            thinned = True
+        return thinned
+
+    def iterations(self) -> list[tuple[int, np.ndarray, np.ndarray]]:
+        """The kept iterations, the final one last (kept even when the stride skipped it)."""
+        assert self.final is not None
+        k, t_ns, xyt = self.final
+        if self.kept and self.kept[-1][0] == k:
+            return self.kept
+        return [*self.kept, (k, t_ns, xyt[:, :2])]
+
+
+def _iteration_curves(its: list[tuple[int, np.ndarray, np.ndarray]], r: np.ndarray, tr: np.ndarray,
+                      t_final: np.ndarray, xy_final: np.ndarray, truth_t_ns: np.ndarray,
+                      truth_xyt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per iteration (seed 2, Fig. 9): (a) the mean position error of its poses against the
+    truth after the estimate's alignment (r, tr); (b) the mean distance between its poses
+    and the final estimate's poses of the same t_ns (others ignored). NaN: nothing to
+    average. Vectorised over batches of iterations."""
+    n = len(its)
+    sums = np.zeros((4, n))  # error sum, error count, distance sum, distance count
+    lo = 0
+    while lo < n:
+        hi, rows = lo, 0
+        while hi < n and (hi == lo or rows + len(its[hi][1]) <= _BATCH_ROWS):
+            rows += len(its[hi][1])
+            hi += 1
+        t_ns = np.concatenate([it[1] for it in its[lo:hi]])
+        xy = np.concatenate([it[2] for it in its[lo:hi]])
+        which = np.repeat(np.arange(lo, hi), [len(it[1]) for it in its[lo:hi]])
+        truth, inside = interpolate_truth(t_ns, truth_t_ns, truth_xyt)
+        err = np.hypot(*(xy[inside] @ r.T + tr - truth[inside, :2]).T)
+        sums[0] += np.bincount(which[inside], err, minlength=n)
+        sums[1] += np.bincount(which[inside], minlength=n)
+        j = np.minimum(np.searchsorted(t_final, t_ns), len(t_final) - 1)
+        same = t_final[j] == t_ns
+        dist = np.hypot(*(xy[same] - xy_final[j[same]]).T)
+        sums[2] += np.bincount(which[same], dist, minlength=n)
+        sums[3] += np.bincount(which[same], minlength=n)
+        lo = hi
+    avg_err = np.divide(sums[0], sums[1], out=np.full(n, np.nan), where=sums[1] > 0)
+    conv = np.divide(sums[2], sums[3], out=np.full(n, np.nan), where=sums[3] > 0)
+    return avg_err, conv
 
 
 class TrajectoryComparison(Component):
-    """Final trajectories and per-iteration errors of several estimates (seed 2, Figs. 8-9)."""
+    """Final trajectories and per-iteration errors of several estimates against the truth
+    (seed 2, Figs. 8 and 9; see the module doc for the metrics and the files)."""
 
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
-    baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a pose stream drawn beside (dead reckoning)")
+    baseline = Input(Pose2D, maxsize=1 << 20, required=False, doc="a pose stream drawn and scored beside "
+                     "(dead reckoning)")
     map = Input(Grid, policy="sampling", required=False,
                 doc="a radar map in the frame of the first estimate (dB), drawn under Fig. 8")
 
-    estimates = Param(list, default=["ekf", "isam2", "lm"], doc="one Trajectory2D input per name")
-    titles = Param(list, default=[], doc="names in the figures (default: the input names)")
+    estimates = Param(list, default=["ekf", "isam2", "lm"], doc="one Trajectory2D input per name (one sample = "
+                      "one iteration, the last one the final estimate)")
+    titles = Param(list, default=[], doc="names in the figures, one per estimate ([]: the input names)")
     report = Param(str, default="", path="write_dir", doc="report folder ('' = metrics only, no files)")
-    align = Param(str, default="first", choices=("first", "rigid"), doc="alignment before the errors")
+    align = Param(str, default="first", choices=("first", "rigid"),
+                  doc="first: on the first estimated pose (the seed's); rigid: least squares on the final positions")
     title = Param(str, default="SLAM back-ends", doc="title of the report")
-    baseline_title = Param(str, default="dead reckoning", doc="name of the baseline")
+    baseline_title = Param(str, default="dead reckoning", doc="name of the baseline in the figures")
 
     @classmethod
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
-        names = params.get("estimates", ["ekf", "isam2", "lm"])
+        names = params.get("estimates", cls.estimates.default)
         titles = params.get("titles", [])
+        taken = set(cls.__inputs__) | set(cls.__params__)
+        if not names:
+            raise ParamError("parameter 'estimates': give at least one name")
         for n in names:
-            if not isinstance(n, str) or not n.isidentifier() or n in ("truth", "baseline"):
-                raise ValueError(f"parameter 'estimates': {n!r} is not a valid input name "
-                                 "(an identifier other than truth/baseline)")
+            if not isinstance(n, str) or not n.isidentifier() or n in taken:
+                raise ParamError(f"parameter 'estimates': {n!r} is not a valid input name (an identifier, "
+                                 "not truth, baseline, map nor a parameter name)")
+        if len(set(names)) != len(names):
+            raise ParamError(f"parameter 'estimates': a name is given twice in {names}")
         if titles and len(titles) != len(names):
-            raise ValueError(f"parameter 'titles': {len(titles)} titles for {len(names)} estimates")
+            raise ParamError(f"parameter 'titles': {len(titles)} titles for {len(names)} estimates "
+                             "(one per estimate, or [] for the names)")
         ins = dict(cls.__inputs__)
         for n in names:
-            ins[n] = Input(Trajectory2D, maxsize=1 << 16, required=False, doc=f"iterations of estimate {n}")
+            ins[n] = Input(Trajectory2D, maxsize=1 << 16, overflow="block", required=False,
+                           doc=f"iterations of estimate {n} (one Trajectory2D each)")
         return ins, {}
 
     def start(self) -> None:
-        self.samples: dict[str, list[Trajectory2D]] = {n: [] for n in self.estimates}
+        self.samples = {n: _Iterations(budget=MAX_ROWS // len(self.estimates)) for n in self.estimates}
         self.truth_t: list[int] = []
         self.truth_xyt: list[tuple[float, float, float]] = []
         self.base_t: list[int] = []
         self.base_xyt: list[tuple[float, float, float]] = []
         self.figures: dict[str, Any] = {}
+        #: per estimate (with a score): iteration (1-based), avg_err and conv (m) per kept
+        #: iteration, dist and err (m) of the final poses, xy the aligned final positions
+        self.curves: dict[str, dict[str, Any]] = {}
         self._done = False
 
     def process(self, t: int) -> None:
@@ -100,167 +211,252 @@ class TrajectoryComparison(Component):
             self.base_t.append(s.timestamp)
             self.base_xyt.append((d.x_m, d.y_m, d.theta_rad))
         elif self.trigger in self.samples:
-            self.samples[self.trigger].append(d)
+            its = self.samples[self.trigger]
+            if its.add(d):
+                self.log.warning("estimate %s: more than %d poses over its iterations, every %d-th iteration "
+                                 "kept for the convergence curves", self.trigger, its.budget, its.stride)
 
-    # --- metrics ----------------------------------------------------------------------
-    def _transform(self, t_ns: np.ndarray, xyt: np.ndarray, tt: np.ndarray, tx: np.ndarray):
+    # --- metrics --------------------------------------------------------------------------
+    def _score(self, name: str, t_ns: np.ndarray, xyt: np.ndarray, tt: np.ndarray, tx: np.ndarray,
+               dist_truth: np.ndarray) -> dict[str, Any] | None:
+        """Errors of one trajectory (the final estimate or the baseline) after its alignment;
+        None when no pose lies inside the truth's span."""
         truth, inside = interpolate_truth(t_ns, tt, tx)
-        if self.align == "first":
-            return align_first(xyt[inside][:1], truth[inside][:1]), inside, truth
-        return rigid_align_2d(xyt[inside, :2], truth[inside, :2]), inside, truth
+        outside = int(np.count_nonzero(~inside))
+        if outside:  # one or two at the ends are routine (a truth that starts or stops a little late)
+            (self.log.info if outside <= 2 else self.log.warning)(
+                "%s: %d of %d poses outside the truth's time span, left out", name, outside, len(t_ns))
+        if not np.any(inside):
+            return None
+        est, truth, t_in = xyt[inside], truth[inside], t_ns[inside]
+        r, tr = rigid_align_2d(est[:, :2], truth[:, :2]) if self.align == "rigid" else align_first(est, truth)
+        aligned = apply_rigid(r, tr, est)
+        err = np.hypot(*(aligned[:, :2] - truth[:, :2]).T)
+        rel = (t_in - tt[0]).astype(np.float64)
+        travelled = np.interp(rel, (tt - tt[0]).astype(np.float64), dist_truth)  # along the truth (m)
+        travelled -= travelled[0]
+        ate = float(np.sqrt(np.mean(err ** 2)))
+        return {"ate_rmse_m": ate, "final_err_m": float(err[-1]), "mean_err_m": float(np.mean(err)),
+                "max_err_m": float(np.max(err)), "poses_outside_truth": outside, "path_m": float(travelled[-1]),
+                "end_to_end_err_m": float(np.hypot(*(_rel(est[0], est[-1]) - _rel(truth[0], truth[-1])))),
+                "r": r, "t": tr, "err": err, "dist": travelled, "xy": aligned[:, :2], "t_ns": t_in}
 
     def compute(self) -> dict[str, Any]:
+        """The metrics of what was received (once; stop() and summary() share them)."""
         if self._done:
             return self.figures
         self._done = True
         out: dict[str, Any] = {}
-        self.curves: dict[str, dict[str, np.ndarray]] = {}
         self._map_transform: tuple[np.ndarray, np.ndarray] | None = None
-        if len(self.truth_t) < 2:
-            self.log.warning("fewer than two truth poses: nothing to compare")
-            return out
-        tt = np.asarray(self.truth_t, np.int64)
-        tx = np.asarray(self.truth_xyt, float)
-        span = 0.0
+        self._baseline_xy: np.ndarray | None = None
+        self._notes: list[str] = []
         for name in self.estimates:
             its = self.samples[name]
-            if not its or len(its[-1].t_ns) == 0:
-                self.log.info("estimate %s received nothing: left out", name)
+            if its.final is None:
+                self.log.info("estimate %s received nothing (no pose): left out", name)
+                self._notes.append(f"{name}: received nothing (no pose), left out.")
                 continue
-            final = its[-1]
-            t_f = np.asarray(final.t_ns, np.int64)
-            x_f = np.asarray(final.xyt, float)
-            (r, tr), inside, truth = self._transform(t_f, x_f, tt, tx)
-            if not np.any(inside):
-                self.log.warning("estimate %s lies outside the truth's time span", name)
+            out[f"{name}_iterations"] = its.received
+            out[f"{name}_poses"] = int(len(its.final[1]))
+        if len(self.truth_t) < 2:
+            self.log.warning("fewer than two truth poses (%d): no error computed", len(self.truth_t))
+            self._notes.append(f"Fewer than two truth poses ({len(self.truth_t)}): no error computed.")
+            self.figures = self._grouped(out)
+            return self.figures
+        tt, tx = _sorted_by_time(np.asarray(self.truth_t, np.int64), np.asarray(self.truth_xyt, np.float64))
+        dist_truth = distance_travelled_m(tx[:, :2])
+        longest = 0.0
+        for name in self.estimates:
+            its = self.samples[name]
+            if its.final is None:
                 continue
-            al = apply_rigid(r, tr, x_f[inside])
+            _, t_f, x_f = its.final
+            s = self._score(name, t_f, x_f, tt, tx, dist_truth)
+            out[f"{name}_poses_outside_truth"] = int(len(t_f)) if s is None else s["poses_outside_truth"]
+            if s is None:  # the note on the poses outside says it
+                continue
+            for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+                out[f"{name}_{k}"] = s[k]
+            if s["path_m"] > 0:
+                out[f"{name}_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
+            longest = max(longest, s["path_m"])
             if self._map_transform is None:  # the map lies in the first estimate's frame
-                self._map_transform = (r, tr)
-            err = np.hypot(*(al[:, :2] - truth[inside, :2]).T)
-            path = path_length_m(truth[inside, :2])
-            span = max(span, path)
-            ate = float(np.sqrt(np.mean(err ** 2)))
-            out.update({f"{name}_ate_rmse_m": round(ate, 4), f"{name}_final_err_m": round(float(err[-1]), 4),
-                        f"{name}_mean_err_m": round(float(err.mean()), 4),
-                        f"{name}_max_err_m": round(float(err.max()), 4),
-                        f"{name}_iterations": len(its), f"{name}_poses": int(len(t_f)),
-                        f"{name}_poses_outside_truth": int((~inside).sum())})
-            if path > 0:
-                out[f"{name}_ate_pct"] = round(100.0 * ate / path, 4)
-            # alignment-free: the last pose seen from the first, against the truth's (loop drift)
-            e0, e1, g0, g1 = x_f[inside][0], x_f[inside][-1], truth[inside][0], truth[inside][-1]
-            out[f"{name}_end_to_end_err_m"] = round(float(np.hypot(*(_rel(e0, e1) - _rel(g0, g1)))), 4)
-            # per iteration: (a) error vs truth, (b) distance to the final estimate
-            keep = its if sum(len(s.t_ns) for s in its) <= _MAX_ROWS else \
-                [its[i] for i in np.unique(np.linspace(0, len(its) - 1, 1000).astype(int))]
-            final_of = dict(zip(t_f.tolist(), range(len(t_f)), strict=True))
-            avg_err, conv = [], []
-            for s in keep:
-                t_s = np.asarray(s.t_ns, np.int64)
-                x_s = np.asarray(s.xyt, float)
-                tr_s, in_s = interpolate_truth(t_s, tt, tx)
-                if np.any(in_s):
-                    a = apply_rigid(r, tr, x_s[in_s])
-                    avg_err.append(float(np.mean(np.hypot(*(a[:, :2] - tr_s[in_s, :2]).T))))
-                else:
-                    avg_err.append(np.nan)
-                idx = np.array([final_of.get(int(v), -1) for v in t_s])
-                m = idx >= 0
-                conv.append(float(np.mean(np.hypot(*(x_s[m, :2] - x_f[idx[m], :2]).T))) if np.any(m) else np.nan)
-            self.curves[name] = {"avg_err": np.array(avg_err), "conv": np.array(conv),
-                                 "dist": distance_travelled_m(truth[inside, :2]), "err": err,
-                                 "xy": al[:, :2], "subsampled": np.array(len(keep) < len(its))}
-        if span > 0:
-            out["path_length_m"] = round(span, 2)
-        if len(self.base_t) >= 2:
-            bt = np.asarray(self.base_t, np.int64)
-            bx = np.asarray(self.base_xyt, float)
-            (r, tr), inside, truth = self._transform(bt, bx, tt, tx)
-            if np.any(inside):
-                al = apply_rigid(r, tr, bx[inside])
-                err = np.hypot(*(al[:, :2] - truth[inside, :2]).T)
-                out["baseline_ate_rmse_m"] = round(float(np.sqrt(np.mean(err ** 2))), 4)
-                out["baseline_final_err_m"] = round(float(err[-1]), 4)
-                self.curves["_baseline"] = {"xy": al[:, :2]}
-        self._truth_xy = tx[:, :2]
-        self.figures = out
-        return out
+                self._map_transform = (s["r"], s["t"])
+            kept = its.iterations()
+            avg_err, conv = _iteration_curves(kept, s["r"], s["t"], t_f, x_f[:, :2], tt, tx)
+            self.curves[name] = {"iteration": np.array([k[0] for k in kept]), "avg_err": avg_err, "conv": conv,
+                                 "dist": s["dist"], "err": s["err"], "xy": s["xy"], "t_ns": s["t_ns"],
+                                 "subsampled": its.stride > 1}
+            if its.stride > 1:
+                self._notes.append(f"{name}: {its.received} iterations, {len(kept)} drawn in Fig. 9 (every "
+                                   f"{its.stride}-th and the last: more than {its.budget} poses over them, "
+                                   f"{MAX_ROWS} shared by the estimates).")
+        if longest > 0:
+            out["path_length_m"] = longest
+        if self.base_t:
+            bt, bx = _sorted_by_time(np.asarray(self.base_t, np.int64), np.asarray(self.base_xyt, np.float64))
+            s = self._score("baseline", bt, bx, tt, tx, dist_truth)
+            out["baseline_poses"] = int(len(bt))
+            out["baseline_poses_outside_truth"] = int(len(bt)) if s is None else s["poses_outside_truth"]
+            if s is not None:
+                for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+                    out[f"baseline_{k}"] = s[k]
+                if s["path_m"] > 0:
+                    out["baseline_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
+                self._baseline_xy = s["xy"]
+        self._truth = (tt, tx)
+        self.figures = self._grouped(out)
+        return self.figures
 
-    # --- report -------------------------------------------------------------------------
+    def _grouped(self, out: dict[str, Any]) -> dict[str, Any]:
+        """The metrics estimate by estimate (in ``estimates`` order), then the rest."""
+        order = [k for n in self.estimates for x in _KEYS if (k := f"{n}_{x}") in out]
+        return {k: out[k] for k in order + [k for k in out if k not in order]}
+
+    # --- report ---------------------------------------------------------------------------
     def _titles(self) -> dict[str, str]:
-        return dict(zip(self.estimates, self.titles or self.estimates, strict=True))
+        return {n: str(t) for n, t in zip(self.estimates, self.titles or self.estimates, strict=True)}
+
+    def _colours(self) -> dict[str, str]:  # by position in `estimates`: the same in both figures
+        return {n: _COLOURS[i % len(_COLOURS)] for i, n in enumerate(self.estimates)}
+
+    def table(self) -> str:
+        """The markdown table of report.md: one row per estimate, then the baseline."""
+        f = self.figures
+
+        def cell(key: str, fmt: str = ".3f") -> str:
+            v = f.get(key)
+            return "n/a" if v is None else format(v, fmt)
+
+        rows = ["| estimate | ATE RMSE (m) | ATE (% of path) | final error (m) | end to end (m) | mean error (m) "
+                "| iterations | poses |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+        titles = self._titles()
+        for n in self.estimates:
+            if f"{n}_iterations" in f:
+                rows.append(f"| {titles[n]} | {cell(f'{n}_ate_rmse_m')} | {cell(f'{n}_ate_pct')} | "
+                            f"{cell(f'{n}_final_err_m')} | {cell(f'{n}_end_to_end_err_m')} | "
+                            f"{cell(f'{n}_mean_err_m')} | {f[f'{n}_iterations']} | {f[f'{n}_poses']} |")
+        if "baseline_poses" in f:
+            rows.append(f"| {self.baseline_title} | {cell('baseline_ate_rmse_m')} | {cell('baseline_ate_pct')} | "
+                        f"{cell('baseline_final_err_m')} | {cell('baseline_end_to_end_err_m')} | "
+                        f"{cell('baseline_mean_err_m')} | | "
+                        f"{f['baseline_poses']} |")
+        return "\n".join(rows)
 
     def write(self, folder: Path) -> None:
+        """metrics.json, report.md and, with errors to draw, trajectories.png, convergence.png."""
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "metrics.json").write_text(json.dumps(self.figures, indent=2, sort_keys=True) + "\n")
-        titles = self._titles()
-        names = [n for n in self.estimates if n in self.curves]
-        colour = {n: _COLOURS[i % len(_COLOURS)] for i, n in enumerate(self.estimates)}
-        # Fig. 8
-        fig = _figure(7.5, 6.5)
-        ax = fig.add_subplot()
-        radar_map = self.inputs["map"].latest()
-        if radar_map is not None and self._map_transform is not None:
-            _show_map(ax, radar_map.data, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
-        ax.plot(*self._truth_xy.T, color="k", lw=0.8, label="truth (RTK-GPS)")
-        if "_baseline" in self.curves:
-            ax.plot(*self.curves["_baseline"]["xy"].T, "--", color="0.55", lw=1.0, label=self.baseline_title)
-        for n in names:
-            f = self.figures
-            ax.plot(*self.curves[n]["xy"].T, color=colour[n], lw=1.4,
-                    label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.2f} m, final {f[f'{n}_final_err_m']:.2f} m)")
-        ax.plot(*self._truth_xy[0], "o", color="k", ms=6, label="start")
-        ax.set(aspect="equal", xlabel="x (m)", ylabel="y (m)",
-               title=f"{self.title}: final trajectories ({self.align} alignment)")
-        ax.grid(alpha=0.3)
-        ax.legend(loc="best", frameon=False, fontsize=8)
-        fig.savefig(folder / "trajectories.png")
-        # Fig. 9
-        fig = _figure(8.0, 9.0)
-        axes = fig.subplots(3, 1)
-        for n in names:
-            c = self.curves[n]
-            it = np.arange(len(c["avg_err"]))
-            ok = np.isfinite(c["avg_err"])
-            axes[0].plot(it[ok], c["avg_err"][ok], color=colour[n], lw=1.2, label=titles[n])
-            pos = np.isfinite(c["conv"]) & (c["conv"] > 0)
-            axes[1].plot(it[pos], c["conv"][pos], color=colour[n], lw=1.2, label=titles[n])
-            axes[2].plot(c["dist"], c["err"], color=colour[n], lw=1.2, label=titles[n])
-        axes[0].set(xlabel="iteration", ylabel="average error (m)", title="(a) average error vs truth per iteration")
-        axes[1].set(xlabel="iteration", ylabel="distance to final (m)",
-                    title="(b) rate of convergence: mean distance to the final estimate")
-        if any(line.get_ydata().size for line in axes[1].get_lines()):
-            axes[1].set_yscale("log")
-        axes[2].set(xlabel="distance travelled (m)", ylabel="position error (m)",
-                    title="(c) error of the final estimates along the path")
-        for a in axes:
-            a.grid(alpha=0.3)
-            if a.get_lines():
-                a.legend(loc="best", frameon=False, fontsize=8)
-        fig.savefig(folder / "convergence.png")
-        rows = ["| estimate | ATE RMSE (m) | ATE (% of path) | final error (m) | end to end (m) | mean error (m) "
-                "| iterations | poses |", "|---|---|---|---|---|---|---|---|"]
+        (folder / METRICS_FILE).write_text(json.dumps(self.figures, indent=2, sort_keys=True) + "\n")
+        drawn = bool(self.curves)
+        if drawn:
+            self._trajectories_figure(folder / "trajectories.png")
+            self._convergence_figure(folder / "convergence.png")
         f = self.figures
-        for n in names:
-            rows.append(f"| {titles[n]} | {f[f'{n}_ate_rmse_m']:.3f} | {f.get(f'{n}_ate_pct', float('nan')):.3f} | "
-                        f"{f[f'{n}_final_err_m']:.3f} | {f[f'{n}_end_to_end_err_m']:.3f} | "
-                        f"{f[f'{n}_mean_err_m']:.3f} | {f[f'{n}_iterations']} | {f[f'{n}_poses']} |")
-        if "baseline_ate_rmse_m" in f:
-            rows.append(f"| {self.baseline_title} | {f['baseline_ate_rmse_m']:.3f} | | {f['baseline_final_err_m']:.3f}"
-                        " | | | | |")
-        text = [f"# {self.title}", "", f"Truth path length: {f.get('path_length_m', 0):.1f} m; "
-                f"{self.align} alignment.", "", *rows, "",
-                "![final trajectories (seed 2, Fig. 8)](trajectories.png)", "",
-                "![error and convergence per iteration (seed 2, Fig. 9)](convergence.png)", ""]
+        outside = [f"{n}: {f[f'{n}_poses_outside_truth']} of {f[f'{n}_poses']} poses outside the truth's time "
+                   "span, left out."
+                   for n in (*self.estimates, "baseline") if f.get(f"{n}_poses_outside_truth")]
+        path = f" Truth path length {f['path_length_m']:.1f} m." if "path_length_m" in f else ""
+        text = [f"# {self.title}", "",
+                f"Alignment: {self.align}.{path} Errors: positions against the truth interpolated at each pose's "
+                "time; ATE % of the truth's path over each final trajectory's time span.", "",
+                self.table(), ""]
+        text += [f"- {note}" for note in (*self._notes, *outside)] + ([""] if self._notes or outside else [])
+        if drawn:
+            text += ["![final trajectories (seed 2, Fig. 8)](trajectories.png)", "",
+                     "![error and convergence per iteration (seed 2, Fig. 9)](convergence.png)", ""]
         (folder / "report.md").write_text("\n".join(text))
 
+    def _trajectories_figure(self, path: Path) -> None:
+        """Fig. 8: truth (thin black), final estimates, baseline (dashed grey), start marker."""
+        titles, colour, f = self._titles(), self._colours(), self.figures
+        tt, tx = self._truth
+        spans = [c["t_ns"] for c in self.curves.values()]
+        t0, t1 = min(int(s[0]) for s in spans), max(int(s[-1]) for s in spans)
+        sel = (tt > t0) & (tt < t1)
+        ends, _ = interpolate_truth(np.array([t0, t1], np.int64), tt, tx)
+        truth_xy = np.vstack([ends[:1, :2], tx[sel, :2], ends[1:, :2]])
+        fig = _figure(7.5, 6.8)
+        ax = fig.add_subplot()
+        radar_map = self.map.get()
+        if radar_map is not None and self._map_transform is not None:
+            _show_map(ax, radar_map, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
+        ax.plot(*truth_xy.T, color="k", lw=0.8, label="truth", zorder=5)
+        xys = [truth_xy]
+        if self._baseline_xy is not None:
+            ax.plot(*self._baseline_xy.T, "--", color="0.55", lw=1.0, zorder=2,
+                    label=f"{self.baseline_title} (ATE {f['baseline_ate_rmse_m']:.2f} m)")
+            xys.append(self._baseline_xy)
+        for n, c in self.curves.items():
+            ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4,
+                    label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.3f} m, final {f[f'{n}_final_err_m']:.3f} m)")
+            xys.append(c["xy"])
+        ax.plot(*truth_xy[0], "o", color="k", mfc="w", ms=7, mew=1.5, zorder=6, label="start")
+        xy = np.vstack(xys)
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        mid, half = 0.5 * (lo + hi), 0.5 * float(np.max(hi - lo)) * 1.08 + 2.0
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] - half, mid[1] + half)
+        ax.set_aspect("equal")
+        ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{self.title}: final trajectories ({self.align} alignment)")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", framealpha=0.85, fontsize=8)
+        fig.savefig(path)
+
+    def _convergence_figure(self, path: Path) -> None:
+        """Fig. 9: (a) average error per iteration, (b) rate of convergence, (c) the final
+        estimates' error along the distance travelled. (b) on a log scale when it has positive
+        values, (a) when they span more than 30x (a first batch iteration far off); values
+        that a log scale cannot show (0: the last iteration of (b)) are left out."""
+        titles, colour = self._titles(), self._colours()
+        fig = _figure(8.0, 9.6)
+        from matplotlib.ticker import MaxNLocator  # after _figure: matplotlib is imported lazily
+
+        a, b, c = fig.subplots(3, 1)
+        curves = self.curves.values()
+        pos = [np.concatenate([cv[k][np.isfinite(cv[k]) & (cv[k] > 0)] for cv in curves]) for k in ("avg_err", "conv")]
+        log_a = pos[0].size > 0 and float(pos[0].max()) > 30.0 * float(pos[0].min())
+        log_b = pos[1].size > 0
+        for n, cv in self.curves.items():
+            it = cv["iteration"]
+            style = dict(color=colour[n], lw=1.2, marker="o" if len(it) <= 30 else None, ms=3,
+                         label=titles[n] + (" (iterations subsampled)" if cv["subsampled"] else ""))
+            for ax, key, log in ((a, "avg_err", log_a), (b, "conv", log_b)):
+                ok = np.isfinite(cv[key]) & ((cv[key] > 0) if log else True)
+                if np.any(ok):
+                    ax.plot(it[ok], cv[key][ok], **style)
+            c.plot(cv["dist"], cv["err"], color=colour[n], lw=1.2, label=titles[n])
+        a.set(xlabel="iteration", ylabel="average error (m)", title="(a) average total error per iteration")
+        b.set(xlabel="iteration", ylabel="mean distance to final (m)",
+              title="(b) rate of convergence: mean distance to the final estimate")
+        c.set(xlabel="distance travelled (m)", ylabel="position error (m)",
+              title=f"(c) error of the final estimates along the path ({self.align} alignment)")
+        for ax, log in ((a, log_a), (b, log_b)):
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            if log:
+                ax.set_yscale("log")
+            else:
+                ax.set_ylim(bottom=0)
+        if log_b:
+            b.text(0.99, 0.02, "0 at the last iteration (not drawn on the log scale)", transform=b.transAxes,
+                   ha="right", va="bottom", fontsize=7, color="0.4")
+        c.set_ylim(bottom=0)
+        c.set_xlim(left=0)
+        for ax in (a, b, c):
+            ax.grid(alpha=0.3)
+            if ax.get_lines():
+                ax.legend(loc="best", frameon=False, fontsize=8)
+        fig.suptitle(self.title)
+        fig.savefig(path)
+
+    # --- lifecycle --------------------------------------------------------------------------
     def stop(self) -> None:
-        if not hasattr(self, "samples"):
+        if not hasattr(self, "samples"):  # start() did not run
             return
-        figures = self.compute()
-        if self.report and figures:
+        self.compute()
+        if self.curves:
+            self.log.info("trajectory comparison (%s alignment)\n%s", self.align, self.table())
+        if self.report:
             self.write(Path(self.report))
 
     def summary(self) -> dict:
-        return dict(self.compute()) if hasattr(self, "samples") else {}
+        return {k: round(v, 4) if isinstance(v, float) else v for k, v in self.compute().items()}
