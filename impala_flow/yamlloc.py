@@ -20,7 +20,7 @@ from typing import Any
 
 import yaml
 
-__all__ = ["Loc", "LocDict", "LocList", "load_yaml", "load_value", "YamlError", "Loader",
+__all__ = ["Loc", "LocDict", "LocList", "location", "load_yaml", "load_value", "YamlError", "Loader",
            "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES"]
 
 #: largest graph file read (bytes): a graph is a few kB; this keeps validation under a second
@@ -193,6 +193,17 @@ class LocList(list):
 
     def where(self, i: int) -> Loc | None:
         return self.item_locs[i] if i < len(self.item_locs) else self.loc
+
+
+def location(node: Any, key: Any = None, default: str = "", *, value: bool = False) -> str:
+    """``file:line:col`` of ``key`` in a mapping or list read by :func:`load_yaml` (of its
+    value with ``value=True``; of the node itself when ``key`` is None), else ``default``."""
+    loc = None
+    if isinstance(node, LocDict):
+        loc = node.loc if key is None else (node.value_where(key) if value else node.where(key))
+    elif isinstance(node, LocList):
+        loc = node.loc if key is None else node.where(key)
+    return str(loc) if loc is not None else default
 
 
 def _loc(file: str, node: yaml.Node) -> Loc:

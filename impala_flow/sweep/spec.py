@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..yamlloc import LocDict, LocList, YamlError, load_yaml
+from ..yamlloc import YamlError, load_yaml, location
 
 __all__ = ["SweepSpec", "SweepError", "Task", "load_sweep", "format_value", "RESERVED_VARIABLES"]
 
@@ -105,25 +105,6 @@ def format_value(v: Any) -> str:
     return json.dumps(v)
 
 
-def _at(d: Any, key: Any, where: str) -> str:
-    """Location of ``key`` in mapping ``d`` (of ``d`` itself when ``key`` is None)."""
-    if isinstance(d, LocDict):
-        loc = d.where(key) if key is not None else d.loc
-        if loc is not None:
-            return str(loc)
-    return where
-
-
-def _value_at(d: Any, key: Any, where: str) -> str:
-    """Location of the value of ``key`` in mapping ``d``, or of item ``key`` in list ``d``."""
-    loc = None
-    if isinstance(d, LocDict):
-        loc = d.value_where(key)
-    elif isinstance(d, LocList):
-        loc = d.where(key)
-    return str(loc) if loc is not None else where
-
-
 def load_sweep(path: str | Path) -> SweepSpec:
     """Load and validate a sweep file (module doc); raises :class:`SweepError`."""
     path = Path(path)
@@ -134,15 +115,15 @@ def load_sweep(path: str | Path) -> SweepSpec:
         raise SweepError(str(e)) from None
     if not isinstance(doc, dict) or not doc:
         raise SweepError(f"{where}:1:1: a sweep file is a mapping with graph, missions and metrics")
-    top = _at(doc, None, f"{where}:1:1")
+    top = location(doc, None, f"{where}:1:1")
     for k in doc:
         if k not in _TOP:
-            raise SweepError(f"{_at(doc, k, where)}: unknown key {k!r} (valid: {', '.join(_TOP)})")
+            raise SweepError(f"{location(doc, k, where)}: unknown key {k!r} (valid: {', '.join(_TOP)})")
     for k in ("graph", "missions", "metrics"):
         if k not in doc:
             raise SweepError(f"{top}: missing key {k!r}")
     base = path.parent
-    locs: dict[str, str] = {"graph": _value_at(doc, "graph", where)}
+    locs: dict[str, str] = {"graph": location(doc, "graph", where, value=True)}
     if not isinstance(doc["graph"], str) or not doc["graph"]:
         raise SweepError(f"{locs['graph']}: graph must be the path of a graph file")
     graph = Path(doc["graph"])
@@ -154,16 +135,17 @@ def load_sweep(path: str | Path) -> SweepSpec:
     metrics = _metrics(doc, where, locs)
     repeats = doc.get("repeats", 1)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise SweepError(f"{_value_at(doc, 'repeats', where)}: repeats must be an integer >= 1, got {repeats!r}")
+        raise SweepError(f"{location(doc, 'repeats', where, value=True)}: repeats must be an integer >= 1, "
+                         f"got {repeats!r}")
     variables = doc.get("variables") or {}
     if not isinstance(variables, dict):
-        raise SweepError(f"{_value_at(doc, 'variables', where)}: variables must be a mapping of name: value")
+        raise SweepError(f"{location(doc, 'variables', where, value=True)}: variables must be a mapping of name: value")
     for k in variables:
         if k in RESERVED_VARIABLES:
-            raise SweepError(f"{_at(variables, k, where)}: variable {k!r} is set by the sweep for every task "
+            raise SweepError(f"{location(variables, k, where)}: variable {k!r} is set by the sweep for every task "
                              "(mission: the mission file, out: the task's folder)")
     variants = _variants(doc, where, locs)
-    missions = _missions(doc["missions"], base, _value_at(doc, "missions", where), locs)
+    missions = _missions(doc["missions"], base, location(doc, "missions", where, value=True), locs)
     tags = _mission_tags(missions, base)
     tasks = []
     for (mission, seed, duration), params, rep in itertools.product(missions, variants, range(repeats)):
@@ -176,11 +158,11 @@ def load_sweep(path: str | Path) -> SweepSpec:
 
 def _metrics(doc: Any, where: str, locs: dict[str, str]) -> list[str]:
     metrics = doc["metrics"]
-    at = _value_at(doc, "metrics", where)
+    at = location(doc, "metrics", where, value=True)
     if not isinstance(metrics, list) or not metrics:
         raise SweepError(f"{at}: metrics must be a non-empty list of 'component.key' (e.g. eval.ate_rmse_m)")
     for i, m in enumerate(metrics):
-        mat = _value_at(metrics, i, at)
+        mat = location(metrics, i, at, value=True)
         if not isinstance(m, str) or m.count(".") != 1 or not all(m.split(".")):
             raise SweepError(f"{mat}: metric {m!r} is not 'component.key' (e.g. eval.ate_rmse_m)")
         if f"metric:{m}" in locs:
@@ -191,40 +173,42 @@ def _metrics(doc: Any, where: str, locs: dict[str, str]) -> list[str]:
 
 def _variants(doc: Any, where: str, locs: dict[str, str]) -> list[tuple[tuple[str, Any], ...]]:
     if "grid" in doc and "variants" in doc:
-        raise SweepError(f"{_at(doc, 'variants', where)}: give either grid (a product) or variants (a list), "
+        raise SweepError(f"{location(doc, 'variants', where)}: give either grid (a product) or variants (a list), "
                          "not both")
     if "variants" in doc:
         vs = doc["variants"]
-        at = _value_at(doc, "variants", where)
+        at = location(doc, "variants", where, value=True)
         if not isinstance(vs, list) or not vs:
             raise SweepError(f"{at}: variants must be a non-empty list of {{component.param: value}} mappings")
         out = []
         for i, v in enumerate(vs):
             if not isinstance(v, dict):
-                raise SweepError(f"{_value_at(vs, i, at)}: variant {i + 1} must be a mapping "
+                raise SweepError(f"{location(vs, i, at, value=True)}: variant {i + 1} must be a mapping "
                                  "{component.param: value} ({} for the graph as it is)")
             _check_names(v, where, locs)
             variant = tuple(sorted((str(k), val) for k, val in v.items()))
             if variant in out:
-                raise SweepError(f"{_value_at(vs, i, at)}: variant {i + 1} repeats an earlier one")
+                raise SweepError(f"{location(vs, i, at, value=True)}: variant {i + 1} repeats an earlier one")
             out.append(variant)
         return out
     grid = doc.get("grid")
     if grid is None or grid == {}:
         return [()]
     if not isinstance(grid, dict):
-        raise SweepError(f"{_value_at(doc, 'grid', where)}: grid must map component.param to a list of values")
+        raise SweepError(f"{location(doc, 'grid', where, value=True)}: grid must map component.param to a list "
+                         "of values")
     _check_names(grid, where, locs)
     names = list(grid)
     for k in names:
         vals = grid[k]
         if not isinstance(vals, list) or not vals:
-            raise SweepError(f"{_value_at(grid, k, where)}: grid {k}: must be a non-empty list of values, "
+            raise SweepError(f"{location(grid, k, where, value=True)}: grid {k}: must be a non-empty list of values, "
                              f"e.g. [{format_value(vals) if not isinstance(vals, (list, dict)) else '1.0, 2.0'}]")
         seen: list[Any] = []
         for i, v in enumerate(vals):
             if v in seen:
-                raise SweepError(f"{_value_at(vals, i, where)}: grid {k}: value {format_value(v)} listed twice")
+                raise SweepError(f"{location(vals, i, where, value=True)}: grid {k}: value {format_value(v)} "
+                                 "listed twice")
             seen.append(v)
     return [tuple(zip(names, combo, strict=True)) for combo in itertools.product(*(grid[k] for k in names))]
 
@@ -232,8 +216,8 @@ def _variants(doc: Any, where: str, locs: dict[str, str]) -> list[tuple[tuple[st
 def _check_names(d: Any, where: str, locs: dict[str, str]) -> None:
     for k in d:
         if not isinstance(k, str) or k.count(".") != 1 or not all(k.split(".")):
-            raise SweepError(f"{_at(d, k, where)}: {k!r} is not 'component.param' (e.g. slam.search_m)")
-        locs.setdefault(f"param:{k}", _at(d, k, where))
+            raise SweepError(f"{location(d, k, where)}: {k!r} is not 'component.param' (e.g. slam.search_m)")
+        locs.setdefault(f"param:{k}", location(d, k, where))
 
 
 def _looks_like_file(scenario: str) -> bool:
@@ -245,26 +229,26 @@ def _missions(m: Any, base: Path, where: str, locs: dict[str, str]) -> list[tupl
         raise SweepError(f"{where}: missions must be a mapping with simulate and/or files")
     for k in m:
         if k not in ("simulate", "files"):
-            raise SweepError(f"{_at(m, k, where)}: unknown key missions.{k} (valid: simulate, files)")
+            raise SweepError(f"{location(m, k, where)}: unknown key missions.{k} (valid: simulate, files)")
     out: list[tuple[str, int | None, float | None]] = []
     sims = m.get("simulate")
     if sims is not None:
-        sat = _value_at(m, "simulate", where)
+        sat = location(m, "simulate", where, value=True)
         items = sims if isinstance(sims, list) else [sims]
         if not items:
             raise SweepError(f"{sat}: missions.simulate must be a mapping (scenario, duration_s, seeds) or a "
                              "list of them")
         for i, sim in enumerate(items):
-            out += _simulated(sim, base, _value_at(sims, i, sat) if isinstance(sims, list) else sat, locs)
+            out += _simulated(sim, base, location(sims, i, sat, value=True) if isinstance(sims, list) else sat, locs)
     files = m.get("files")
     if files is not None:
-        fat = _value_at(m, "files", where)
+        fat = location(m, "files", where, value=True)
         if isinstance(files, str):
             files = [files]
         if not isinstance(files, list) or not files:
             raise SweepError(f"{fat}: missions.files must be a list of mission files or globs")
         for i, pattern in enumerate(files):
-            pat = _value_at(files, i, fat)
+            pat = location(files, i, fat, value=True)
             if not isinstance(pattern, str) or not pattern:
                 raise SweepError(f"{pat}: missions.files: {pattern!r} is not a path or a glob")
             full = pattern if Path(pattern).is_absolute() else str(base / pattern)
@@ -287,34 +271,35 @@ def _simulated(sim: Any, base: Path, at: str, locs: dict[str, str]) -> list[tupl
         raise SweepError(f"{at}: missions.simulate must be a mapping (scenario, duration_s, seeds)")
     for k in sim:
         if k not in _SIM:
-            raise SweepError(f"{_at(sim, k, at)}: unknown key missions.simulate.{k} (valid: {', '.join(_SIM)})")
+            raise SweepError(f"{location(sim, k, at)}: unknown key missions.simulate.{k} (valid: {', '.join(_SIM)})")
     if "scenario" not in sim:
-        raise SweepError(f"{_at(sim, None, at)}: missions.simulate needs a scenario (a name such as beynes, or "
+        raise SweepError(f"{location(sim, None, at)}: missions.simulate needs a scenario (a name such as beynes, or "
                          "a scenario file)")
     scenario = sim["scenario"]
     if not isinstance(scenario, str) or not scenario:
-        raise SweepError(f"{_value_at(sim, 'scenario', at)}: scenario must be a name or a scenario file")
+        raise SweepError(f"{location(sim, 'scenario', at, value=True)}: scenario must be a name or a scenario file")
     if _looks_like_file(scenario):
         file = Path(scenario) if Path(scenario).is_absolute() else base / scenario
         if not file.is_file():
-            raise SweepError(f"{_value_at(sim, 'scenario', at)}: scenario file {scenario!r}: no such file ({file})")
+            raise SweepError(f"{location(sim, 'scenario', at, value=True)}: scenario file {scenario!r}: "
+                             f"no such file ({file})")
         scenario = str(file.resolve())
-    locs.setdefault(f"scenario:{scenario}", _value_at(sim, "scenario", at))
+    locs.setdefault(f"scenario:{scenario}", location(sim, "scenario", at, value=True))
     seeds = sim.get("seeds", [1])
-    sat = _value_at(sim, "seeds", at)
+    sat = location(sim, "seeds", at, value=True)
     if isinstance(seeds, int) and not isinstance(seeds, bool):
         seeds = [seeds]
     if not isinstance(seeds, list) or not seeds:
         raise SweepError(f"{sat}: seeds must be a non-empty list of integers")
     for i, s in enumerate(seeds):
         if isinstance(s, bool) or not isinstance(s, int):
-            raise SweepError(f"{_value_at(seeds, i, sat)}: seed {s!r} is not an integer")
+            raise SweepError(f"{location(seeds, i, sat, value=True)}: seed {s!r} is not an integer")
     if len(set(seeds)) != len(seeds):
         raise SweepError(f"{sat}: a seed is listed twice")
     dur = sim.get("duration_s")
     if dur is not None and (isinstance(dur, bool) or not isinstance(dur, (int, float)) or not 0 < dur < float("inf")):
-        raise SweepError(f"{_value_at(sim, 'duration_s', at)}: duration_s must be a positive number of seconds, "
-                         f"got {dur!r}")
+        raise SweepError(f"{location(sim, 'duration_s', at, value=True)}: duration_s must be a positive number "
+                         f"of seconds, got {dur!r}")
     return [(f"sim:{scenario}", int(s), None if dur is None else float(dur)) for s in seeds]
 
 

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from impala_flow.msgs import RadarConfig
-from impala_flow.yamlloc import LocDict, YamlError, load_yaml
+from impala_flow.yamlloc import YamlError, load_yaml, location
 
 from .presets import preset
 from .scenes import SCENES
@@ -101,15 +101,6 @@ def scenario_path(name_or_path: str | Path) -> Path:
                         f"(valid names: {', '.join(names)})")
 
 
-def _at(where: str, mapping: Any, key: Any = None, value: bool = False) -> str:
-    """``file:line:col`` of ``key`` (or of its value) in a mapping read with locations."""
-    if isinstance(mapping, LocDict):
-        loc = mapping.value_where(key) if value else (mapping.where(key) if key is not None else mapping.loc)
-        if loc is not None:
-            return str(loc)
-    return where
-
-
 def _check(where: str, mapping: Any, allowed: set[str], label: str = "") -> dict:
     if mapping is None:
         return {}
@@ -118,7 +109,7 @@ def _check(where: str, mapping: Any, allowed: set[str], label: str = "") -> dict
                             f"got {type(mapping).__name__}")
     for key in mapping:
         if key not in allowed:
-            raise ScenarioError(f"{_at(where, mapping, key)}: unknown key {label}{key!r} "
+            raise ScenarioError(f"{location(mapping, key, where)}: unknown key {label}{key!r} "
                                 f"(valid: {', '.join(sorted(allowed))})")
     return mapping
 
@@ -134,7 +125,7 @@ def _check_power(where: str, radar: Any) -> None:
             continue
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo < v <= hi if lo == 0.0 else lo <= v <= hi):
             what = f"> {lo:g} and <= {hi:g}" if lo == 0.0 else f"in [{lo:g}, {hi:g}]"
-            raise ScenarioError(f"{_at(where, radar, key, value=True)}: radar.{key} = {v!r} must be a "
+            raise ScenarioError(f"{location(radar, key, where, value=True)}: radar.{key} = {v!r} must be a "
                                 f"number {what} (a gain or power that is not physical)")
 
 
@@ -142,7 +133,7 @@ def _check_beams(where: str, spec: Any, config: RadarConfig) -> None:
     n = spec.get("beams_per_turn")
     if n is None:
         return
-    at = _at(where, spec, "beams_per_turn", value=True)
+    at = location(spec, "beams_per_turn", where, value=True)
     if isinstance(n, bool) or not isinstance(n, int) or n < 8:
         raise ScenarioError(f"{at}: beams_per_turn = {n!r} must be an integer >= 8")
     turn_ns = 1e9 / config.rotation_hz
@@ -181,38 +172,38 @@ def load_scenario(source: str | Path | dict, *, seed: int | None = None,
     spec = _check(where, spec, _TOP_KEYS)
     for key in ("world", "seed", "preset"):
         if key not in spec:
-            raise ScenarioError(f"{_at(where, spec)}: missing key {key!r}")
+            raise ScenarioError(f"{location(spec, None, where)}: missing key {key!r}")
     vehicle = _check(where, spec.get("vehicle"), _VEHICLE_KEYS, "vehicle.")
     radar = _check(where, spec.get("radar"), _RADAR_KEYS, "radar.")
     sensors_spec = _check(where, spec.get("sensors"), _SENSOR_KEYS, "sensors.")
     builder = SCENES.get(spec["world"])
     if builder is None:
-        raise ScenarioError(f"{_at(where, spec, 'world', value=True)}: unknown world {spec['world']!r} "
+        raise ScenarioError(f"{location(spec, 'world', where, value=True)}: unknown world {spec['world']!r} "
                             f"(valid: {', '.join(sorted(SCENES))})")
     _check_power(where, radar)
     try:
         config = preset(spec["preset"])
     except (KeyError, ValueError) as e:
-        raise ScenarioError(f"{_at(where, spec, 'preset', value=True)}: {e.args[0] if e.args else e}") from None
+        raise ScenarioError(f"{location(spec, 'preset', where, value=True)}: {e.args[0] if e.args else e}") from None
     _check_beams(where, spec, config)
     try:
         params = RadarParams(**radar)
     except (ValueError, TypeError) as e:
         msg = str(e.args[0] if e.args else e)
         bad = next((k for k in radar if f"radar.{k} " in msg or f"'{k}'" in msg), None)
-        raise ScenarioError(f"{_at(where, radar, bad, value=True) if bad else _at(where, spec, 'radar')}: "
+        raise ScenarioError(f"{location(radar, bad, where, value=True) if bad else location(spec, 'radar', where)}: "
                             f"{msg}") from None
     try:
         sensors = make_sensors(dict(sensors_spec))
     except (KeyError, ValueError, TypeError) as e:
-        raise ScenarioError(f"{_at(where, spec, 'sensors')}: {e.args[0] if e.args else e}") from None
+        raise ScenarioError(f"{location(spec, 'sensors', where)}: {e.args[0] if e.args else e}") from None
     config.window = params.window  # the beams say how their spectra were weighted
     seed = int(spec["seed"] if seed is None else seed)
     world_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[0])
     world, routes = builder(world_rng)
     route_name = spec.get("route", "default")
     if route_name not in routes:
-        raise ScenarioError(f"{_at(where, spec, 'route', value=True)}: unknown route {route_name!r} for world "
+        raise ScenarioError(f"{location(spec, 'route', where, value=True)}: unknown route {route_name!r} for world "
                             f"{spec['world']!r} (valid: {', '.join(sorted(routes))})")
     route = routes[route_name]
     start = int(spec.get("start_t_ns", 0))
