@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from .se2 import between, compose
+from .se2 import between, compose, wrap
 
 __all__ = ["PoseEkf", "between_jacobians", "compose_jacobians"]
 
@@ -126,7 +126,7 @@ class PoseEkf:
         xb = np.repeat(self.x[j][None, :], len(idx), axis=0)
         c, s = np.cos(xa[:, 2]), np.sin(xa[:, 2])
         dx, dy = xb[:, 0] - xa[:, 0], xb[:, 1] - xa[:, 1]
-        z = np.column_stack([c * dx + s * dy, -s * dx + c * dy, _wrap(xb[:, 2] - xa[:, 2])])
+        z = np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap(xb[:, 2] - xa[:, 2])])
         ja, jb = between_jacobians(xa, xb)
         p = self._p
         r = (3 * idx[:, None] + np.arange(3)[None, :])  # k x 3 state indices
@@ -142,7 +142,7 @@ class PoseEkf:
         """(nu, S, nu^T S^-1 nu) of the observation z = T_ij with covariance r."""
         h, cov = self.relative(np.array([i]), j)
         nu = np.asarray(z, float) - h[0]
-        nu[2] = _wrap(nu[2])
+        nu[2] = wrap(nu[2])
         s = cov[0] + r
         return nu, s, float(nu @ np.linalg.solve(s, nu))
 
@@ -156,7 +156,7 @@ class PoseEkf:
         k = np.linalg.solve(s, pht.T).T  # P H^T S^-1 (S symmetric)
         self._x[:m] += k @ nu
         xs = self._x[:m].reshape(-1, 3)
-        xs[:, 2] = _wrap(xs[:, 2])
+        xs[:, 2] = wrap(xs[:, 2])
         for r0 in range(0, m, block_rows):  # P -= K (P H^T)^T, in row blocks: no m x m temporary
             r1 = min(m, r0 + block_rows)
             p[r0:r1, :m] -= k[r0:r1] @ pht.T
@@ -165,6 +165,3 @@ class PoseEkf:
     def relative_pose(self, i: int, j: int) -> Pose:
         return between(self.pose(i), self.pose(j))
 
-
-def _wrap(a: np.ndarray | float) -> np.ndarray | float:
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi

@@ -310,10 +310,7 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     wa = a.image * hann
     best = None
     for theta in (theta0, theta0 + math.pi):
-        j = _derotate(b.image, theta) * hann
-        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
-        dy, dx, snr, h = phase_correlation(wa, j)
-        cand = (snr, theta, -dx * p.cell_m, -dy * p.cell_m, h)
+        cand = _translation(wa, b.image, hann, theta, p.cell_m)
         if best is None:
             best = cand
         elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
@@ -344,6 +341,8 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
 
 
 def _translation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, cell_m: float) -> tuple:
+    """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak."""
+    # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
     dy, dx, snr, h = phase_correlation(wa, _derotate(b_img, theta) * hann)
     return snr, theta, -dx * cell_m, -dy * cell_m, h
 
