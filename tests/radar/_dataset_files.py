@@ -35,6 +35,13 @@ def navtech_folder(folder: Path, n_scans: int = 3, t0_us: int = 1_700_000_000_00
     return paths
 
 
+def radiate_time(seconds: str) -> str:
+    """Decimal seconds (``"100.25"``) written as RADIATE writes them: ``<s>.<ns>`` with the
+    nanoseconds' leading zeros dropped (``"100.250000000"``; 100.01 s is ``"100.10000000"``)."""
+    s, _, frac = seconds.partition(".")
+    return f"{s}.{int(frac.ljust(9, '0')[:9])}"
+
+
 def radiate_folder(folder: Path, times: list[str], rows: int = 30, cols: int = 400) -> list[Path]:
     """``Navtech_Polar/00000k.png`` (rows range bins x cols azimuths) and ``Navtech_Polar.txt``."""
     (folder / "Navtech_Polar").mkdir(parents=True, exist_ok=True)
@@ -43,6 +50,6 @@ def radiate_folder(folder: Path, times: list[str], rows: int = 30, cols: int = 4
         img = np.random.default_rng(k).integers(0, 256, (rows, cols), dtype=np.uint8)
         paths.append(folder / "Navtech_Polar" / f"{k:06d}.png")
         Image.fromarray(img).save(paths[-1])
-        lines.append(f"Frame: {k:06d} Time: {t}")
+        lines.append(f"Frame: {k:06d} Time: {radiate_time(t)}")
     (folder / "Navtech_Polar.txt").write_text("\n".join(lines) + "\n")
     return paths

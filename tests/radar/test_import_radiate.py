@@ -17,7 +17,7 @@ from impala_flow.io import MissionReader
 from impala_flow.msgs import wrap_angle
 
 from ..datasets import radiate_head_or_skip
-from ._dataset_files import radiate_folder
+from ._dataset_files import radiate_folder, radiate_time
 
 
 def _import(folder, out, *extra):
@@ -126,7 +126,7 @@ def _gps(folder, times, lat, lon, yaw):
         cov = "0, 0, 0"
         body = [f"{la!r}, {lo!r}, 50.0", cov, cov, cov, ", ".join(repr(v) for v in q)] + [cov] * 13
         (folder / "GPS_IMU_Twist" / f"{k:06d}.txt").write_text("\n".join(body) + "\n")
-        lines.append(f"Frame: {k:06d} Time: {t}")
+        lines.append(f"Frame: {k:06d} Time: {radiate_time(t)}")
     (folder / "GPS_IMU_Twist.txt").write_text("\n".join(lines) + "\n")
 
 

@@ -44,9 +44,13 @@ RADIATE_RANGE_RESOLUTION_M = 0.17361
 _LINE = re.compile(r"^\s*Frame:\s*(\d+)\s+Time:\s*(\d+)(?:\.(\d+))?\s*$")
 
 
-def read_frame_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_frame_times(path: Path, backwards: list[tuple[int, int]] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(frames, t_ns)`` of a RADIATE ``<sensor>.txt`` index; times parsed exactly to ns.
-    A bad line, a repeated frame or a time that goes back is a :class:`DatasetError`."""
+    RADIATE writes the nanosecond fraction without its leading zeros (``1549986548.10563645``
+    is ``1549986548.010563645``): the fraction is padded on the left, as RADIATE's SDK does.
+    A bad line or a repeated frame is a :class:`DatasetError`; a time that goes back is one
+    too unless ``backwards`` is a list, which then gets ``(line, step_ns)`` of every line
+    dropped for it (a receiver clock step)."""
     if not path.is_file():
         raise DatasetError(f"{path}: missing (frame times of the scans)")
     frames, times = [], []
@@ -57,8 +61,13 @@ def read_frame_times(path: Path) -> tuple[np.ndarray, np.ndarray]:
             m = _LINE.match(line)
             if m is None:
                 raise DatasetError(f"{path}: line {n}: expected 'Frame: <n> Time: <seconds>', got {line.strip()!r}")
-            frac = (m.group(3) or "")[:9].ljust(9, "0")
-            t = int(m.group(2)) * 1_000_000_000 + int(frac)
+            frac = (m.group(3) or "0")
+            if len(frac) > 9:
+                raise DatasetError(f"{path}: line {n}: more than 9 digits after the point: {line.strip()!r}")
+            t = int(m.group(2)) * 1_000_000_000 + int(frac)  # the digits are nanoseconds: left-padded
+            if times and t < times[-1] and backwards is not None:
+                backwards.append((n, t - times[-1]))
+                continue
             if times and t < times[-1]:
                 raise DatasetError(f"{path}: line {n}: time goes backwards ({t} ns after {times[-1]} ns)")
             if frames and int(m.group(1)) <= frames[-1]:
@@ -179,7 +188,15 @@ class RadiateDataset(NavtechDataset):
         if not (self.folder / "GPS_IMU_Twist").is_dir():
             report.notes.append("no GPS_IMU_Twist/ folder: no truth poses")
             return None
-        frames, t_ns = read_frame_times(self.folder / "GPS_IMU_Twist.txt")
+        back: list[tuple[int, int]] = []
+        frames, t_ns = read_frame_times(self.folder / "GPS_IMU_Twist.txt", backwards=back)
+        if back:
+            report.notes.append(f"GPS_IMU_Twist.txt: {len(back)} fix(es) dropped, time going back (line {back[0][0]}: "
+                                f"{back[0][1] / 1e9:+.3f} s)")
+        first = np.concatenate([[True], np.diff(t_ns) > 0])  # RADIATE writes every fix twice
+        if not first.all():
+            report.notes.append(f"GPS_IMU_Twist.txt: {int((~first).sum())} repeated fix(es) merged")
+        frames, t_ns = frames[first], t_ns[first]
         t0, t1 = int(self.frame_t_ns[0]), int(self.frame_t_ns[-1]) + self.period_ns
         inside = (t_ns >= t0) & (t_ns <= t1)
         if not inside.any():
