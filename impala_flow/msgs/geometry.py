@@ -9,12 +9,20 @@ import numpy as np
 
 from ._base import message
 
-__all__ = ["Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D", "wrap_angle"]
+__all__ = ["HEADING_UNKNOWN_VAR_RAD2", "Scalar", "Pose2D",
+           "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D", "wrap_angle"]
 
 
 def wrap_angle(a: float | np.ndarray) -> float | np.ndarray:
     """Wrap an angle (or an array of angles) to [-pi, pi)."""
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+#: A heading variance at or above this (rad^2) means "heading unknown": pi^2 / 3 is the
+#: variance of a heading spread evenly over the circle. Truth from a GPS (positions only, the
+#: heading known only from the course over ground while moving) marks the others so, and
+#: evaluators then score positions only. See :attr:`Pose2D.heading_known`.
+HEADING_UNKNOWN_VAR_RAD2 = math.pi**2 / 3.0
 
 
 @message("impala.Scalar", version=1)
@@ -50,6 +58,13 @@ class Pose2D:
 
     def as_array(self) -> np.ndarray:
         return np.array([self.x_m, self.y_m, self.theta_rad])
+
+    @property
+    def heading_known(self) -> bool:
+        """False when ``cov_xyt[2, 2] >= HEADING_UNKNOWN_VAR_RAD2``: ``theta_rad`` is then only a
+        placeholder (e.g. a GPS fix while the vehicle stands still) and must not be scored."""
+        c = self.cov_xyt
+        return not (c.shape == (3, 3) and c[2, 2] >= HEADING_UNKNOWN_VAR_RAD2)
 
 
 @message("impala.Twist2D", version=1)
