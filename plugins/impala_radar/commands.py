@@ -82,6 +82,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="log scale of the pixels: beams carry linear power 10^(count x DB / 10) (default 0.5)")
     p.add_argument("--range-offset-bins", type=float, default=0.5, metavar="BINS",
                    help="range of bin 0 in bins (default 0.5: bin centres, the Navtech SDKs)")
+    p.add_argument("--keep-frame-stamps", action="store_true",
+                   help="radiate: beam times from the frame stamps as written (default: frames stamped late, "
+                   "when the logger fell behind, are put back on the radar's turn clock)")
     p.add_argument("--skip-bad-scans", action="store_true",
                    help="skip unreadable scans (counted and reported with their reason) instead of failing")
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
@@ -126,6 +129,10 @@ def _import(args: argparse.Namespace) -> int:
                     "skip_bad_scans": args.skip_bad_scans}
     if args.azimuth_offset_deg is not None:
         params["azimuth_offset_deg"] = args.azimuth_offset_deg
+    if args.keep_frame_stamps:
+        if args.format != "radiate":
+            raise CommandError("--keep-frame-stamps: radiate only (the other formats stamp every row)", EXIT_USAGE)
+        params["retime"] = False
     if not args.db_per_count > 0:
         raise CommandError(f"--db-per-count {args.db_per_count}: must be > 0", EXIT_USAGE)
     params["db_per_count"] = args.db_per_count

@@ -136,9 +136,12 @@ class RadiateScans(_NavtechFolderScans):
     range_resolution_m = Param(float, default=0.17361, gt=0.0, doc="range per bin (the dataset's 0.17361 m)")
     rotation = Param(str, default="cw", choices=("cw", "ccw"), doc="sense of increasing columns seen from above "
                      "(cw: checked on the data)")
+    retime = Param(bool, default=True, doc="put frames stamped late (the logger fell behind) back on the radar's "
+                   "turn clock; False: beam times from the frame stamps as written")
 
     def _options(self) -> dict[str, Any]:
-        return {**super()._options(), "range_resolution_m": self.range_resolution_m, "rotation": self.rotation}
+        return {**super()._options(), "range_resolution_m": self.range_resolution_m, "rotation": self.rotation,
+                "retime": self.retime}
 
 
 #: start of simulated missions unless told otherwise (Foxglove's timeline shows real dates)

@@ -42,14 +42,60 @@ def radiate_time(seconds: str) -> str:
     return f"{s}.{int(frac.ljust(9, '0')[:9])}"
 
 
-def radiate_folder(folder: Path, times: list[str], rows: int = 30, cols: int = 400) -> list[Path]:
-    """``Navtech_Polar/00000k.png`` (rows range bins x cols azimuths) and ``Navtech_Polar.txt``."""
+def radiate_time_ns(t_ns: int) -> str:
+    """Unix time in ns written as RADIATE writes it (nanoseconds without leading zeros)."""
+    return f"{t_ns // 10**9}.{t_ns % 10**9}"
+
+
+def radiate_folder(folder: Path, times: list[str | int], rows: int = 30, cols: int = 400, first: int = 1,
+                   png: bool = True) -> list[Path]:
+    """``Navtech_Polar/<frame>.png`` (rows range bins x cols azimuths, frames from ``first``) and
+    ``Navtech_Polar.txt``; ``times`` as decimal seconds text or int ns."""
     (folder / "Navtech_Polar").mkdir(parents=True, exist_ok=True)
     lines, paths = [], []
-    for k, t in enumerate(times, start=1):
-        img = np.random.default_rng(k).integers(0, 256, (rows, cols), dtype=np.uint8)
+    for k, t in enumerate(times, start=first):
         paths.append(folder / "Navtech_Polar" / f"{k:06d}.png")
-        Image.fromarray(img).save(paths[-1])
-        lines.append(f"Frame: {k:06d} Time: {radiate_time(t)}")
+        if png:
+            img = np.random.default_rng(k).integers(0, 256, (rows, cols), dtype=np.uint8)
+            Image.fromarray(img).save(paths[-1])
+        lines.append(f"Frame: {k:06d} Time: {radiate_time(t) if isinstance(t, str) else radiate_time_ns(t)}")
     (folder / "Navtech_Polar.txt").write_text("\n".join(lines) + "\n")
+    return paths
+
+
+def en_to_latlon(east_m: np.ndarray, north_m: np.ndarray, lat0_deg: float = 55.9391,
+                 lon0_deg: float = -3.2268, alt_m: float = 115.0) -> tuple[np.ndarray, np.ndarray]:
+    """East/North (m) around (lat0, lon0) at ``alt_m`` to WGS-84 degrees with the ellipsoid's
+    radii of curvature there (first order: about a millimetre over a few hundred metres)."""
+    a, f = 6378137.0, 1.0 / 298.257223563
+    e2 = f * (2 - f)
+    s = np.sin(np.radians(lat0_deg))
+    m = a * (1 - e2) / (1 - e2 * s * s) ** 1.5  # meridian
+    n = a / np.sqrt(1 - e2 * s * s)  # prime vertical
+    return (lat0_deg + np.degrees(np.asarray(north_m) / (m + alt_m)),
+            lon0_deg + np.degrees(np.asarray(east_m) / ((n + alt_m) * np.cos(np.radians(lat0_deg)))))
+
+
+def radiate_gps(folder: Path, t_ns: list[int], east_m, north_m, imu_yaw_enu_rad, cov_en=(0.09, 0.16),
+                twice: bool = True, first: int = 1, index_only: tuple[int, ...] = ()) -> list[Path]:
+    """``GPS_IMU_Twist/<frame>.txt`` and ``GPS_IMU_Twist.txt`` as RADIATE writes them: every fix
+    written twice (two frames, same time) unless ``twice`` is False; line 1 lat, lon, alt;
+    lines 2-4 the ENU position covariance (diagonal ``cov_en``, up 0.2); line 5 the IMU
+    quaternion (yaw only); 11 more lines. Fixes at ``index_only`` positions get no file."""
+    (folder / "GPS_IMU_Twist").mkdir(parents=True, exist_ok=True)
+    lat, lon = en_to_latlon(np.asarray(east_m, float), np.asarray(north_m, float))
+    imu_yaw_enu_rad = np.asarray(imu_yaw_enu_rad, float).tolist()
+    lines, paths, frame = [], [], first
+    zero = "0.0, 0.0, 0.0"
+    for i, (t, la, lo, yaw) in enumerate(zip(t_ns, lat.tolist(), lon.tolist(), imu_yaw_enu_rad, strict=True)):
+        body = [f"{la!r}, {lo!r}, 115.0", f"{cov_en[0]!r}, 0.0, 0.0", f"0.0, {cov_en[1]!r}, 0.0", "0.0, 0.0, 0.2",
+                f"0.0, 0.0, {float(np.sin(yaw / 2))!r}, {float(np.cos(yaw / 2))!r}"] + [zero] * 11
+        for _ in range(2 if twice else 1):
+            path = folder / "GPS_IMU_Twist" / f"{frame:06d}.txt"
+            if i not in index_only:
+                path.write_text("\n".join(body) + "\n")
+            paths.append(path)
+            lines.append(f"Frame: {frame:06d} Time: {radiate_time_ns(int(t))}")
+            frame += 1
+    (folder / "GPS_IMU_Twist.txt").write_text("\n".join(lines) + "\n")
     return paths

@@ -123,13 +123,6 @@ def test_boreas_poses_bad_row(folder, capsys):
                                                      "GPSTime, easting, northing, roll, pitch, heading filled")
 
 
-def test_radiate_times_go_backwards(folder, capsys):
-    radiate_folder(folder, ["100.0", "100.25", "100.1"])
-    line = _fails("radiate", folder, capsys)
-    assert line.endswith(f"{folder / 'Navtech_Polar.txt'}: line 3: time goes backwards "
-                         "(100100000000 ns after 100250000000 ns)")
-
-
 def test_radiate_wrong_shape(folder, capsys):
     paths = radiate_folder(folder, ["100.0", "100.25", "100.5"])
     Image.fromarray(np.zeros((30, 399), np.uint8)).save(paths[2])

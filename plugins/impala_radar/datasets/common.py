@@ -16,7 +16,7 @@ import numpy as np
 from impala_flow import msgs
 
 __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
-           "read_csv_columns", "enu_to_odom", "counts_to_power"]
+           "read_csv_columns", "enu_to_odom", "counts_to_power", "gap_summary", "time_steps_back", "t_text"]
 
 _BANDWIDTH_HZ = 1.0e9  # 76-77 GHz sweep of the Navtech CTS350-X / CIR304-H
 _F0_HZ = 76.5e9
@@ -72,7 +72,13 @@ class ImportReport:
     dropped_rows: Counter = field(default_factory=Counter)  # reason -> rows
     skipped_scans: list[str] = field(default_factory=list)  # "file: reason"
     truth_poses: int = 0
+    facts: dict[str, str] = field(default_factory=dict)  # what the reader checked, one line each
     notes: list[str] = field(default_factory=list)
+
+    def fact(self, key: str, text: str) -> None:
+        """One line of the import block (``key: text``), also a metadata entry (``key`` with
+        ``_`` for spaces): what was checked and what was done, said even when nothing was."""
+        self.facts[key] = text
 
     def sensor_line(self) -> str:
         c = self.config
@@ -93,6 +99,7 @@ class ImportReport:
         if self.skipped_scans:
             out.append(f"scans skipped: {len(self.skipped_scans)} (" + "; ".join(self.skipped_scans) + ")")
         out.append(f"truth poses:  {self.truth_poses}")
+        out += [f"{key + ':':<13} {text}" for key, text in self.facts.items()]
         out += [f"note:         {n}" for n in self.notes]
         return out
 
@@ -108,6 +115,7 @@ class ImportReport:
         meta.update({f"rows_dropped[{r}]": str(n) for r, n in sorted(self.dropped_rows.items())})
         if self.skipped_scans:
             meta["scans_skipped"] = "; ".join(self.skipped_scans)
+        meta.update({key.replace(" ", "_"): text for key, text in self.facts.items()})
         meta.update({f"note{i}": n for i, n in enumerate(self.notes)})
         return meta
 
@@ -124,9 +132,11 @@ class NavtechDataset:
     def read_scan(self, k: int) -> Scan:
         raise NotImplementedError
 
-    def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray] | None:
-        """Ground truth as ``(t_ns int64 (N,), xyt (N, 3))`` in frame ``odom`` (x forward, y
-        left, yaw CCW), or None (with a note in ``report``)."""
+    def truth(self, report: ImportReport) -> tuple[np.ndarray, ...] | None:
+        """Ground truth as ``(t_ns int64 (N,), xyt (N, 3))`` or ``(t_ns, xyt, cov_xyt (N, 3, 3))``
+        in frame ``odom`` (x forward, y left, yaw CCW), times strictly increasing, or None (with
+        a note in ``report``). A pose whose ``cov_xyt[2, 2] >= msgs.HEADING_UNKNOWN_VAR_RAD2``
+        has an unknown heading (``theta`` a placeholder)."""
         return None
 
     def duration_hint_ns(self) -> int | None:
@@ -188,10 +198,16 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
     streams: list[Iterator] = [_beams(ds, report, skip_bad, db_per_count)]
     truth = ds.truth(report)
     if truth is not None and len(truth[0]):
-        t, xyt = truth
+        t, xyt = truth[0], truth[1]
+        if np.any(np.diff(t) <= 0):
+            raise ValueError(f"{ds.name}: truth times not strictly increasing")  # a reader bug, not bad input
         report.truth_poses = len(t)
-        streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, frame="odom"))
-                       for ti, (x, y, th) in zip(t.tolist(), xyt.tolist(), strict=True))
+        if len(truth) > 2:
+            streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, c, frame="odom"))
+                           for ti, (x, y, th), c in zip(t.tolist(), xyt.tolist(), truth[2], strict=True))
+        else:
+            streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, frame="odom"))
+                           for ti, (x, y, th) in zip(t.tolist(), xyt.tolist(), strict=True))
     for t_ns, _, stream, msg in heapq.merge(*streams, key=lambda item: (item[0], item[1])):
         yield t_ns, stream, msg
 
@@ -238,3 +254,34 @@ def enu_to_odom(east_m: np.ndarray, north_m: np.ndarray, yaw_enu_rad: np.ndarray
     e, n = east_m - east_m[0], north_m - north_m[0]
     c, s = math.cos(yaw_enu_rad[0]), math.sin(yaw_enu_rad[0])
     return np.column_stack([c * e + s * n, -s * e + c * n, msgs.wrap_angle(yaw_enu_rad - yaw_enu_rad[0])])
+
+
+def t_text(t_ns: int) -> str:
+    """Unix time in ns as exact seconds text (``1549986548.010563645``)."""
+    return f"{t_ns // 1_000_000_000}.{t_ns % 1_000_000_000:09d}"
+
+
+def gap_summary(t_ns: np.ndarray, period_ns: float, names: list[str] | None = None, what: str = "turn",
+                whats: str = "turns") -> str:
+    """One line on the missing samples of a stream meant to tick every ``period_ns``: an
+    interval longer than 1.5 periods is a gap of ``round(dt / period) - 1`` missing samples.
+    ``names`` (one per sample, e.g. frame numbers or files) name the sample after the longest."""
+    dt = np.diff(np.asarray(t_ns, dtype=np.int64))
+    gap = np.flatnonzero(dt > 1.5 * period_ns)
+    if not gap.size:
+        return f"none (no {what} missing; longest interval {dt.max() / 1e9 if dt.size else 0.0:.3f} s)"
+    missing = np.rint(dt[gap] / period_ns).astype(np.int64) - 1
+    k = int(gap[np.argmax(dt[gap])])
+    after = f" before {names[k + 1]}" if names is not None else ""
+    return (f"{gap.size} gap(s), {int(missing.sum())} {whats} missing; longest {dt[k] / 1e9:.3f} s{after} "
+            f"(t = {t_text(int(t_ns[k + 1]))} s)")
+
+
+def time_steps_back(t_ns: np.ndarray, equal_is_back: bool = True) -> np.ndarray:
+    """Mask of the samples to drop so that the rest strictly increase (or never decrease,
+    ``equal_is_back=False``): each sample is compared with the last one kept, so a clock
+    step back drops every sample until the time passes the one before the step."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    last = np.maximum.accumulate(t)  # the last kept time is the running maximum
+    prev = np.concatenate([[np.iinfo(np.int64).min], last[:-1]])
+    return (t <= prev) if equal_is_back else (t < prev)

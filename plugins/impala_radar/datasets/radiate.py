@@ -29,31 +29,75 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from impala_flow import msgs
 
-from .common import DatasetError, ImportReport, NavtechDataset, Scan, enu_to_odom, navtech_config
+from .common import (
+    DatasetError,
+    ImportReport,
+    NavtechDataset,
+    Scan,
+    gap_summary,
+    navtech_config,
+    t_text,
+    time_steps_back,
+)
 from .navtech_png import check_grey8, decode_grey8, png_header
 
-__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RadiateDataset", "read_frame_times", "read_gps_imu", "geodetic_to_en"]
+__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RadiateDataset", "FrameIndex", "read_frame_times", "read_gps_imu",
+           "geodetic_to_en", "turn_clock", "course_over_ground", "COURSE_MIN_SPEED_MPS", "COURSE_BASELINE_S",
+           "GPS_VELOCITY_STD_MPS", "COURSE_STD_FLOOR_DEG"]
 
 RADIATE_RANGE_RESOLUTION_M = 0.17361
 _LINE = re.compile(r"^\s*Frame:\s*(\d+)\s+Time:\s*(\d+)(?:\.(\d+))?\s*$")
 
+#: Course over ground: the GPS displacement over COURSE_BASELINE_S (centred on the fix) gives
+#: the heading where its speed is at least COURSE_MIN_SPEED_MPS. Chosen on the Edinburgh head:
+#: at rest (radar images unchanged) the receiver's fixes wander with an apparent velocity of
+#: GPS_VELOCITY_STD_MPS per axis over 0.5-2 s (up to 0.21 m/s over 1 s), so 2 m/s is ten times
+#: the largest wander and the course's std is about std_v / v: 1.7 deg at 2 m/s, 0.35 deg at
+#: 10 m/s, plus COURSE_STD_FLOOR_DEG (the course and the IMU yaw, which has its own errors,
+#: differ by 1.1 deg std at 8-12 m/s). Below 2 m/s the course and the IMU yaw differ by 8 deg std.
+COURSE_MIN_SPEED_MPS = 2.0
+COURSE_BASELINE_S = 1.0
+GPS_VELOCITY_STD_MPS = 0.06
+COURSE_STD_FLOOR_DEG = 1.0
+#: A frame stamped more than this fraction of a turn after the turn clock allows is late.
+LATE_TOLERANCE_TURNS = 0.1
+#: Frames looked ahead to find the turn clock (a backlog drains at ~20 ms per frame on the head).
+LATE_WINDOW_FRAMES = 120
 
-def read_frame_times(path: Path, backwards: list[tuple[int, int]] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(frames, t_ns)`` of a RADIATE ``<sensor>.txt`` index; times parsed exactly to ns.
-    RADIATE writes the nanosecond fraction without its leading zeros (``1549986548.10563645``
-    is ``1549986548.010563645``): the fraction is padded on the left, as RADIATE's SDK does.
-    A bad line or a repeated frame is a :class:`DatasetError`; a time that goes back is one
-    too unless ``backwards`` is a list, which then gets ``(line, step_ns)`` of every line
-    dropped for it (a receiver clock step)."""
+
+@dataclass
+class FrameIndex:
+    """A RADIATE ``<sensor>.txt`` index as read: kept ``frames`` and ``t_ns`` with their
+    ``lines``; ``padded`` lines whose nanoseconds had fewer than 9 digits; ``dropped`` lines
+    ``(line, frame, step_ns)`` whose time went back (step < 0) or repeated the previous (0)."""
+
+    path: Path
+    frames: np.ndarray
+    t_ns: np.ndarray
+    lines: np.ndarray
+    n_lines: int = 0
+    padded: int = 0
+    dropped: list[tuple[int, int, int]] = field(default_factory=list)
+
+
+def read_frame_times(path: Path, equal: str = "drop") -> FrameIndex:
+    """A RADIATE ``<sensor>.txt`` index; times parsed exactly to ns. RADIATE writes the
+    nanosecond fraction without its leading zeros (``1549986548.10563645`` is
+    ``1549986548.010563645``): the fraction is padded on the left, as RADIATE's SDK does. A
+    time going back is dropped (listed in ``dropped``), and so is a time equal to the previous
+    one with ``equal="drop"`` (radar frames); ``equal="keep"`` keeps it (GPS fixes written
+    twice, merged by the caller). A bad line or a frame number not increasing is a
+    :class:`DatasetError`."""
     if not path.is_file():
         raise DatasetError(f"{path}: missing (frame times of the scans)")
-    frames, times = [], []
+    frames, times, lines, padded = [], [], [], 0
     with open(path) as f:
         for n, line in enumerate(f, start=1):
             if not line.strip():
@@ -61,22 +105,67 @@ def read_frame_times(path: Path, backwards: list[tuple[int, int]] | None = None)
             m = _LINE.match(line)
             if m is None:
                 raise DatasetError(f"{path}: line {n}: expected 'Frame: <n> Time: <seconds>', got {line.strip()!r}")
-            frac = (m.group(3) or "0")
+            frac = m.group(3) or "0"
             if len(frac) > 9:
                 raise DatasetError(f"{path}: line {n}: more than 9 digits after the point: {line.strip()!r}")
-            t = int(m.group(2)) * 1_000_000_000 + int(frac)  # the digits are nanoseconds: left-padded
-            if times and t < times[-1] and backwards is not None:
-                backwards.append((n, t - times[-1]))
-                continue
-            if times and t < times[-1]:
-                raise DatasetError(f"{path}: line {n}: time goes backwards ({t} ns after {times[-1]} ns)")
-            if frames and int(m.group(1)) <= frames[-1]:
-                raise DatasetError(f"{path}: line {n}: frame {int(m.group(1))} after frame {frames[-1]}")
+            padded += len(frac) < 9
             frames.append(int(m.group(1)))
-            times.append(t)
+            times.append(int(m.group(2)) * 1_000_000_000 + int(frac))  # the digits are nanoseconds: left-padded
+            lines.append(n)
     if not frames:
         raise DatasetError(f"{path}: no 'Frame: <n> Time: <seconds>' line")
-    return np.array(frames, dtype=np.int64), np.array(times, dtype=np.int64)
+    fr, t, ln = (np.array(v, dtype=np.int64) for v in (frames, times, lines))
+    bad = time_steps_back(t, equal_is_back=equal == "drop")
+    last = np.maximum.accumulate(t)
+    dropped = [(int(ln[i]), int(fr[i]), int(t[i] - last[i - 1])) for i in np.flatnonzero(bad)]
+    fr, t, ln = fr[~bad], t[~bad], ln[~bad]
+    back = np.flatnonzero(np.diff(fr) <= 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise DatasetError(f"{path}: line {ln[i]}: frame {fr[i]} after frame {fr[i - 1]}")
+    return FrameIndex(path, fr, t, ln, len(lines), padded, dropped)
+
+
+def turn_clock(t_ns: np.ndarray, window: int = LATE_WINDOW_FRAMES,
+               tolerance_turns: float = LATE_TOLERANCE_TURNS) -> tuple[np.ndarray, float, np.ndarray]:
+    """``(turn_t_ns, period_ns, late)``: the frames' times on the radar's turn clock.
+
+    RADIATE stamps a frame when the logger receives it: the head's stamps follow a steady
+    0.2498 s clock within about 10 ms, except where the logger fell behind: frame 131 is
+    stamped 0.79 s late and the next 45 frames catch up by ~17 ms each (frames 336-347 alike,
+    0.27 s). The frames are late, not turns missing: the 400 frames span 399 turns of the
+    clock, and while driving at 10 m/s the radar moved 2.5 m (one turn) between frames 335
+    and 336, stamped 0.516 s apart.
+
+    A frame cannot be stamped before it is acquired, so frame k was acquired at the latest at
+    ``min over the next window frames j of t_j - (clock_j - clock_k)``; a frame whose stamp
+    exceeds that by more than ``tolerance_turns`` of a turn is ``late`` and takes that time;
+    the others keep their stamp. Turns really missing (the later frames do not catch up) stay
+    gaps. The clock's period is local (the head's drifts by 0.1 %): the median, over +-100
+    frames, of ``(t_(k+m) - t_k) / m`` (m = 20 frames, fewer in short logs) within 1 % of the
+    overall median (catch-up runs and
+    jumps excluded: they bias even the median interval to 0.249 s). ``period_ns``: the overall
+    median."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    n = t.size
+    if n < 2:
+        return t.copy(), 250e6, np.zeros(n, dtype=bool)
+    m = max(1, min(20, n // 4))
+    d = (t[m:] - t[:-m]) / m
+    period = float(np.median(d))
+    d[np.abs(d - period) > 0.01 * period] = np.nan
+    half = 100
+    padded = np.concatenate([np.full(half, np.nan), d, np.full(half + m, np.nan)])
+    win = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[:n]
+    local = np.nanmedian(np.column_stack([win, np.full(n, period)]), axis=1)  # never an all-NaN row
+    clock = np.concatenate([[0.0], np.cumsum(local[:-1])])
+    r = (t - t[0]).astype(np.float64) - clock  # relative: ns since the first frame stay exact in float64
+    w = max(1, min(window, n))
+    ahead = np.lib.stride_tricks.sliding_window_view(np.concatenate([r, np.full(w - 1, np.inf)]), w).min(axis=1)
+    late = r - ahead > tolerance_turns * period
+    out = t.copy()
+    out[late] = t[0] + np.rint(clock[late] + ahead[late]).astype(np.int64)
+    return out, period, late
 
 
 def geodetic_to_en(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,16 +198,41 @@ def _fields(path: Path, lines: list[str], n: int, count: int) -> list[float]:
     return vals
 
 
-def read_gps_imu(folder: Path, frames: np.ndarray) -> np.ndarray:
-    """``(lat, lon, alt, qx, qy, qz, qw)`` rows of ``GPS_IMU_Twist/<frame>.txt`` for ``frames``."""
-    rows = []
-    for fr in frames.tolist():
+def read_gps_imu(folder: Path, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, found)``: for each of ``frames``, ``GPS_IMU_Twist/<frame>.txt`` as ``(lat, lon,
+    alt, 9 position covariances (line 2-4, row-major), qx, qy, qz, qw)`` (16 values; NaN where
+    the file is missing: ``found`` False). A file with a bad line is a :class:`DatasetError`."""
+    rows = np.full((len(frames), 16), np.nan)
+    found = np.zeros(len(frames), dtype=bool)
+    for i, fr in enumerate(frames.tolist()):
         path = folder / "GPS_IMU_Twist" / f"{fr:06d}.txt"
-        if not path.is_file():
-            raise DatasetError(f"{path}: missing (listed in GPS_IMU_Twist.txt)")
-        lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
-        rows.append(_fields(path, lines, 0, 3) + _fields(path, lines, 4, 4))
-    return np.array(rows, dtype=np.float64).reshape(-1, 7)
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            continue
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        rows[i] = (_fields(path, lines, 0, 3) + _fields(path, lines, 1, 3) + _fields(path, lines, 2, 3)
+                   + _fields(path, lines, 3, 3) + _fields(path, lines, 4, 4))
+        found[i] = True
+    return rows, found
+
+
+def course_over_ground(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray,
+                       baseline_s: float = COURSE_BASELINE_S) -> tuple[np.ndarray, np.ndarray]:
+    """``(course_enu_rad, speed_mps)`` at each fix: the displacement from the last fix at or
+    before ``t - baseline/2`` to the first at or after ``t + baseline/2`` (actual fixes, so a
+    chord across a gap of the log; the first or last fix at the ends); speed 0 where those
+    fixes span less than 0.4 or more than 3 baselines."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    half = int(round(baseline_s * 5e8))
+    a = np.maximum(np.searchsorted(t, t - half, side="right") - 1, 0)
+    b = np.minimum(np.searchsorted(t, t + half, side="left"), t.size - 1)
+    span_s = (t[b] - t[a]) / 1e9
+    de, dn = east_m[b] - east_m[a], north_m[b] - north_m[a]
+    ok = (span_s >= 0.4 * baseline_s) & (span_s <= 3.0 * baseline_s)
+    speed = np.zeros(t.size)
+    speed[ok] = np.hypot(de[ok], dn[ok]) / span_s[ok]
+    return np.arctan2(dn, de), speed
 
 
 class RadiateDataset(NavtechDataset):
@@ -128,7 +242,7 @@ class RadiateDataset(NavtechDataset):
 
     def __init__(self, folder: str | Path, range_resolution_m: float = RADIATE_RANGE_RESOLUTION_M,
                  azimuth_offset_deg: float = 0.0, range_offset_bins: float = 0.5, rotation: str = "cw",
-                 report: ImportReport | None = None) -> None:
+                 report: ImportReport | None = None, retime: bool = True) -> None:
         self.folder = Path(folder)
         polar = self.folder / "Navtech_Polar"
         if not polar.is_dir():
@@ -137,23 +251,56 @@ class RadiateDataset(NavtechDataset):
             raise DatasetError(f"rotation {rotation!r}: 'cw' or 'ccw'")
         if not range_resolution_m > 0:
             raise DatasetError(f"{self.folder}: range resolution {range_resolution_m} m per bin: must be > 0")
-        self.frames, self.frame_t_ns = read_frame_times(self.folder / "Navtech_Polar.txt")
-        self.scan_paths = [polar / f"{fr:06d}.png" for fr in self.frames.tolist()]
-        listed = {p.name for p in self.scan_paths}
+        report = report if report is not None else ImportReport()
+        self.report = report
+        idx = read_frame_times(self.folder / "Navtech_Polar.txt", equal="drop")
+        self.index = idx
+        turn_t, period, late = turn_clock(idx.t_ns) if retime else (idx.t_ns, None, None)
+        if period is None:
+            m = max(1, min(20, idx.t_ns.size // 4))
+            period = float(np.median((idx.t_ns[m:] - idx.t_ns[:-m]) / m)) if idx.t_ns.size > 1 else 250e6
+        paths = [polar / f"{fr:06d}.png" for fr in idx.frames.tolist()]
+        present = np.array([p.is_file() for p in paths], dtype=bool)
+        if not present.any():
+            raise DatasetError(f"{paths[0]}: missing (listed in Navtech_Polar.txt), and so are all the others")
+        self.frames, self.frame_t_ns, self.turn_t_ns = idx.frames[present], idx.t_ns[present], turn_t[present]
+        # where each turn's beams end: the next listed frame (a frame without its PNG is still a turn)
+        self.next_t_ns = np.concatenate([turn_t[1:], turn_t[-1:] + int(round(period))])[present]
+        self.scan_paths = [p for p, ok in zip(paths, present, strict=True) if ok]
+        listed = {p.name for p in paths}
         unlisted = [p for p in polar.glob("*.png") if p.name not in listed]
-        if unlisted and report is not None:
+        if unlisted:
             report.notes.append(f"{len(unlisted)} PNG file(s) in Navtech_Polar/ without a time in "
                                 f"Navtech_Polar.txt, not read")
-        if not self.scan_paths[0].is_file():
-            raise DatasetError(f"{self.scan_paths[0]}: missing (listed in Navtech_Polar.txt)")
         rows, cols, mode = png_header(self.scan_paths[0])
         check_grey8(self.scan_paths[0], mode)
         self.shape = (rows, cols)
-        dt = np.diff(self.frame_t_ns)
-        dt = dt[dt > 0]
-        self.period_ns = int(np.median(dt)) if dt.size else 250_000_000
-        if not dt.size and report is not None:
+        self.period_ns = int(round(period))
+        if idx.t_ns.size < 2:
             report.notes.append("one frame time: rotation period taken as 0.25 s (4 Hz)")
+        name = idx.path.name
+        report.fact("padded times", f"{idx.padded} of {idx.n_lines} lines of {name} (nanoseconds written without "
+                                    "their leading zeros, padded on the left as RADIATE's SDK does)")
+        report.fact("repeats", "no GPS log")
+        report.fact("times back", "radar: " + _dropped_text(idx, "frame"))
+        if retime:
+            lat = idx.t_ns - turn_t
+            if late.any():
+                k = int(np.argmax(lat))
+                report.fact("late frames", f"{int(late.sum())} frame(s) stamped late by > "
+                            f"{LATE_TOLERANCE_TURNS * period / 1e6:.0f} ms (up to {lat[k] / 1e9:.3f} s, frame "
+                            f"{idx.frames[k]:06d} at t = {t_text(int(idx.t_ns[k]))} s), retimed on the turn clock "
+                            f"(one turn {period / 1e9:.5f} s)")
+            else:
+                report.fact("late frames", f"none (stamps on the turn clock of {period / 1e9:.5f} s per turn)")
+        else:
+            report.fact("late frames", "not checked: frame times as stamped")
+        missing_png = int((~present).sum())
+        gaps = gap_summary(turn_t, period, [f"frame {f:06d}" for f in idx.frames.tolist()])
+        if missing_png:
+            first = int(idx.frames[np.flatnonzero(~present)[0]])
+            gaps += f"; {missing_png} frame(s) listed without a PNG (first {first:06d}), not read"
+        report.fact("radar gaps", gaps)
         self.rotation, self.azimuth_offset_deg = rotation, float(azimuth_offset_deg)
         self.config = navtech_config(
             "navtech-cts350x-radiate", rows, float(range_resolution_m),
@@ -171,10 +318,8 @@ class RadiateDataset(NavtechDataset):
                                f"(range bins x azimuths) like the first scan")
         img = decode_grey8(path)
         n = cols
-        span = self.period_ns
-        if k + 1 < len(self.frame_t_ns):
-            span = min(span, int(self.frame_t_ns[k + 1] - self.frame_t_ns[k]))
-        t_ns = self.frame_t_ns[k] + (np.arange(n, dtype=np.int64) * span) // n
+        span = min(self.period_ns, int(self.next_t_ns[k] - self.turn_t_ns[k]))  # never over a gap
+        t_ns = self.turn_t_ns[k] + (np.arange(n, dtype=np.int64) * span) // n
         a = np.arange(n, dtype=np.float64) * (2.0 * np.pi / n)
         a = -a if self.rotation == "cw" else a
         azimuth = msgs.wrap_angle(a + math.radians(self.azimuth_offset_deg))
@@ -182,31 +327,106 @@ class RadiateDataset(NavtechDataset):
         return Scan(path, t_ns, azimuth, power, np.ones(n, dtype=bool))
 
     def duration_hint_ns(self) -> int | None:
-        return int(self.frame_t_ns[-1] - self.frame_t_ns[0]) + self.period_ns
+        return int(self.turn_t_ns[-1] - self.turn_t_ns[0]) + self.period_ns
 
-    def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray] | None:
+    def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         if not (self.folder / "GPS_IMU_Twist").is_dir():
             report.notes.append("no GPS_IMU_Twist/ folder: no truth poses")
             return None
-        back: list[tuple[int, int]] = []
-        frames, t_ns = read_frame_times(self.folder / "GPS_IMU_Twist.txt", backwards=back)
-        if back:
-            report.notes.append(f"GPS_IMU_Twist.txt: {len(back)} fix(es) dropped, time going back (line {back[0][0]}: "
-                                f"{back[0][1] / 1e9:+.3f} s)")
-        first = np.concatenate([[True], np.diff(t_ns) > 0])  # RADIATE writes every fix twice
-        if not first.all():
-            report.notes.append(f"GPS_IMU_Twist.txt: {int((~first).sum())} repeated fix(es) merged")
-        frames, t_ns = frames[first], t_ns[first]
-        t0, t1 = int(self.frame_t_ns[0]), int(self.frame_t_ns[-1]) + self.period_ns
+        idx = read_frame_times(self.folder / "GPS_IMU_Twist.txt", equal="keep")
+        name = idx.path.name
+        radar_padded = report.facts.get("padded times", "").split(" (")[0]
+        report.fact("padded times", f"radar {radar_padded}, GPS {idx.padded} of {idx.n_lines} lines of {name} "
+                    "(nanoseconds written without their leading zeros, padded on the left as RADIATE's SDK does)")
+        report.fact("times back", report.facts.get("times back", "radar: none") + "; GPS: "
+                    + _dropped_text(idx, "fix"))
+        rows, found = read_gps_imu(self.folder, idx.frames)
+        if not found.all():
+            miss = np.flatnonzero(~found)
+            report.fact("GPS files", f"{miss.size} of {found.size} listed in {name} missing (first frame "
+                        f"{idx.frames[miss[0]]:06d}, line {idx.lines[miss[0]]}): those fixes not read")
+        t_ns, rows = idx.t_ns[found], rows[found]
+        if not t_ns.size:
+            report.notes.append(f"{name}: no GPS file found: no truth poses")
+            return None
+        # RADIATE writes every fix twice: same time, same content -> merged. Same time and another
+        # fix: the first kept. A new time with exactly the previous position is a stale fix (the
+        # receiver's position moves by >= 0.5 mm every 50 ms even at rest on the head): merged too.
+        new_t = np.concatenate([[True], np.diff(t_ns) > 0])
+        first_of = np.maximum.accumulate(np.where(new_t, np.arange(t_ns.size), 0))
+        same = ~new_t & np.all(rows == rows[first_of], axis=1)
+        other = ~new_t & ~same
+        rows, t_ns = rows[new_t], t_ns[new_t]
+        stale = np.concatenate([[False], np.all(rows[1:, :2] == rows[:-1, :2], axis=1)])
+        rows, t_ns = rows[~stale], t_ns[~stale]
+        report.fact("repeats", f"GPS: {int(same.sum())} fix(es) written twice merged; {int(stale.sum())} stale "
+                    f"(a new time with the previous position) merged; {int(other.sum())} same time with another "
+                    "fix (first kept)")
+        dt = np.diff(t_ns)
+        gps_period = float(np.median(dt)) if dt.size else 50e6
+        report.fact("GPS gaps", gap_summary(t_ns, gps_period, None, "fix", "fixes"))
+        east, north = geodetic_to_en(rows[:, 0], rows[:, 1], rows[:, 2])
+        course, speed = course_over_ground(t_ns, east, north)
+        qx, qy, qz, qw = rows[:, 12], rows[:, 13], rows[:, 14], rows[:, 15]
+        imu_yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        t0, t1 = int(self.turn_t_ns[0]), int(self.turn_t_ns[-1]) + self.period_ns
         inside = (t_ns >= t0) & (t_ns <= t1)
         if not inside.any():
-            report.notes.append(f"GPS_IMU_Twist times ({t_ns[0] / 1e9:.3f}-{t_ns[-1] / 1e9:.3f} s) do not overlap "
+            report.notes.append(f"{name} times ({t_ns[0] / 1e9:.3f}-{t_ns[-1] / 1e9:.3f} s) do not overlap "
                                 f"the scans ({t0 / 1e9:.3f}-{t1 / 1e9:.3f} s): no truth poses")
             return None
         if not inside.all():
-            report.notes.append(f"GPS_IMU_Twist: {int(inside.sum())} of {inside.size} fixes within the scans' times")
-        g = read_gps_imu(self.folder, frames[inside])
-        east, north = geodetic_to_en(g[:, 0], g[:, 1], g[:, 2])
-        qx, qy, qz, qw = g[:, 3], g[:, 4], g[:, 5], g[:, 6]
-        yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-        return t_ns[inside], enu_to_odom(east, north, yaw)
+            report.notes.append(f"{name}: {int(inside.sum())} of {inside.size} fixes within the scans' times")
+        t_ns, rows, east, north = t_ns[inside], rows[inside], east[inside], north[inside]
+        course, speed, imu_yaw = course[inside], speed[inside], imu_yaw[inside]
+        moving = speed >= COURSE_MIN_SPEED_MPS
+        # the course is the direction of travel: reversing (course opposite to the IMU's yaw,
+        # which is within ~10 deg of it while driving forward) turns it by 180 deg
+        reverse = moving & (np.abs(msgs.wrap_angle(course - imu_yaw)) > math.pi / 2)
+        heading = np.where(reverse, course + math.pi, course)
+        xyt, cov = _odom_truth(east, north, heading, moving, speed, rows[:, 3:12])
+        n, k = t_ns.size, int(moving.sum())
+        axis = "x along the first course over ground" if k else "x east (no course known: never moving)"
+        sig = np.sqrt(np.stack([rows[:, 3], rows[:, 7]]))
+        report.fact("truth", f"positions from GPS (consumer receiver, metre-level; its own std {sig.min():.2f}-"
+                    f"{sig.max():.2f} m) in frame odom: origin the first fix, {axis}")
+        std = np.degrees(np.sqrt(cov[moving, 2, 2])) if k else np.zeros(1)
+        report.fact("heading", f"from the GPS course over ground (>= {COURSE_MIN_SPEED_MPS:g} m/s over "
+                    f"{COURSE_BASELINE_S:g} s; std {std.min():.1f}-{std.max():.1f} deg) on {k} of {n} poses"
+                    + (f" ({int(reverse.sum())} reversing)" if reverse.any() else "")
+                    + "; unknown on the rest (cov_xyt[2,2] = pi^2/3, theta held)")
+        if k:
+            d = np.degrees(msgs.wrap_angle(imu_yaw[moving] - heading[moving]))
+            report.fact("IMU yaw", f"{d.mean():+.1f} deg from the course while moving (std {d.std():.1f} deg, "
+                        f"{k} poses): not used as truth")
+        return t_ns, xyt, cov
+
+
+def _dropped_text(idx: FrameIndex, what: str) -> str:
+    if not idx.dropped:
+        return "none"
+    shown = "; ".join(f"line {ln} ({what} {fr:06d}, {step / 1e9:+.3f} s)" for ln, fr, step in idx.dropped[:5])
+    more = f"; {len(idx.dropped) - 5} more" if len(idx.dropped) > 5 else ""
+    return f"{len(idx.dropped)} line(s) dropped (time going back or repeated): {shown}{more}"
+
+
+def _odom_truth(east: np.ndarray, north: np.ndarray, heading_enu: np.ndarray, known: np.ndarray,
+                speed: np.ndarray, cov_enu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(xyt, cov_xyt)`` in frame odom: origin the first fix, x along the first known heading
+    (east if none); theta known where ``known`` (variance from the course model), else held at
+    the last known one (the first known one before it, 0 if none) with an unknown variance.
+    ``cov_enu`` (N, 9): the receiver's East-North-Up covariance (ROS NavSatFix order), rotated."""
+    first = int(np.argmax(known)) if known.any() else -1
+    psi0 = float(heading_enu[first]) if first >= 0 else 0.0
+    c, s = math.cos(psi0), math.sin(psi0)
+    e, n = east - east[0], north - north[0]
+    theta = np.zeros(e.size)
+    if first >= 0:
+        last = np.maximum.accumulate(np.where(known, np.arange(e.size), first))  # last known pose index
+        theta = msgs.wrap_angle(heading_enu[last] - psi0)
+    rot = np.array([[c, s], [-s, c]])  # ENU -> odom
+    cov = np.zeros((e.size, 3, 3))
+    cov[:, :2, :2] = rot @ cov_enu.reshape(-1, 3, 3)[:, :2, :2] @ rot.T
+    var = (GPS_VELOCITY_STD_MPS / np.maximum(speed, 1e-3)) ** 2 + math.radians(COURSE_STD_FLOOR_DEG) ** 2
+    cov[:, 2, 2] = np.where(known, var, msgs.HEADING_UNKNOWN_VAR_RAD2)
+    return np.column_stack([c * e + s * n, -s * e + c * n, theta]), cov
