@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import DatasetError, ImportReport, enu_to_odom, numbers, read_csv_columns
+from .common import DatasetError, ImportReport, enu_to_odom, numbers, read_csv_columns, time_steps_back
 from .oxford import NavtechPngDataset
 
 __all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BoreasDataset", "boreas_range_resolution_m", "read_boreas_poses",
@@ -52,17 +52,23 @@ def yaw_enu_of_boreas(roll: np.ndarray, pitch: np.ndarray, heading: np.ndarray) 
     return np.arctan2(c10, c00)
 
 
-def read_boreas_poses(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(t_ns, easting, northing, yaw_enu)`` of ``radar_poses.csv`` (see the module doc)."""
+def read_boreas_poses(path: Path, dropped: list[int] | None = None,
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(t_ns, easting, northing, yaw_enu)`` of ``radar_poses.csv`` (see the module doc). A
+    row whose GPSTime goes back or repeats is an error, or dropped with its row number
+    appended to ``dropped`` when that is a list."""
     _, text = read_csv_columns(path, ["GPSTime", "easting", "northing", "roll", "pitch", "heading"])
     t_ns = numbers(path, text[:, :1], int).astype(np.int64)[:, 0] * np.int64(1000)
     v = numbers(path, text[:, 1:], float)
     bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
     if bad.size:
         raise DatasetError(f"{path}: row {int(bad[0]) + 2}: a position or angle is not finite")
-    back = np.flatnonzero(np.diff(t_ns) <= 0)
-    if back.size:
-        raise DatasetError(f"{path}: row {int(back[0]) + 3}: GPSTime does not increase")
+    back = time_steps_back(t_ns)
+    if back.any() and dropped is None:
+        raise DatasetError(f"{path}: row {int(np.argmax(back)) + 2}: GPSTime does not increase")
+    if back.any():
+        dropped += (np.flatnonzero(back) + 2).tolist()
+    t_ns, v = t_ns[~back], v[~back]
     return t_ns, v[:, 0], v[:, 1], yaw_enu_of_boreas(v[:, 2], v[:, 3], v[:, 4])
 
 
@@ -88,11 +94,17 @@ class BoreasDataset(NavtechPngDataset):
         if not path.exists():
             report.notes.append("no applanix/radar_poses.csv: no truth poses")
             return None
-        t_ns, east, north, yaw = read_boreas_poses(path)
+        dropped: list[int] = []
+        t_ns, east, north, yaw = read_boreas_poses(path, dropped)
+        if dropped:
+            report.fact("times back", report.facts.get("times back", "") + f"; {path.name}: {len(dropped)} row(s) "
+                        f"dropped (GPSTime going back or repeated; first row {dropped[0]})")
         mine = np.isin(t_ns, np.array(self.scan_stamps_us, dtype=np.int64) * 1000)
         if not mine.any():
             report.notes.append(f"{path.name}: no GPSTime equals a scan name: no truth poses")
             return None
         if mine.sum() < len(self.scan_paths):
             report.notes.append(f"{path.name}: {len(self.scan_paths) - int(mine.sum())} scan(s) without a pose")
+        report.fact("truth", "Applanix post-processed GNSS/INS (the dataset's applanix/radar_poses.csv: "
+                    "centimetre-level, heading known)")
         return t_ns[mine], enu_to_odom(east[mine], north[mine], yaw[mine])

@@ -21,6 +21,7 @@ __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_co
 _BANDWIDTH_HZ = 1.0e9  # 76-77 GHz sweep of the Navtech CTS350-X / CIR304-H
 _F0_HZ = 76.5e9
 _EMPTY = np.zeros(0, dtype=np.float32)
+_BACK = "time going back or repeated"
 
 
 class DatasetError(ValueError):
@@ -155,25 +156,36 @@ def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
 
 def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
            ) -> Iterator[tuple[int, int, str, msgs.RadarBeam]]:
-    last_t: int | None = None
+    last_t, noted = np.iinfo(np.int64).min, False
     for k, path in enumerate(ds.scan_paths):
         try:
             scan = ds.read_scan(k)
-            t = scan.t_ns[scan.keep]
-            back = np.flatnonzero(np.diff(t) < 0)
-            if back.size:
-                row = int(np.flatnonzero(scan.keep)[back[0] + 1])
-                raise DatasetError(f"{path}: row {row}: time goes backwards "
-                                   f"({int(t[back[0] + 1])} ns after {int(t[back[0]])} ns)")
-            if last_t is not None and t.size and t[0] < last_t:
-                raise DatasetError(f"{path}: scan {k} starts at {int(t[0])} ns, before the end of the "
-                                   f"previous scan ({last_t} ns): scans out of order")
         except DatasetError as e:
             if not skip_bad:
                 raise
             report.skipped_scans.append(str(e))
             continue
-        n_drop = int(scan.keep.size - np.count_nonzero(scan.keep))
+        # a row whose time does not pass the last one kept (within the scan or after the
+        # previous scan) is dropped and counted, the first one named in a note
+        rows = np.flatnonzero(scan.keep)
+        t = scan.t_ns[rows]
+        back = t <= np.maximum.accumulate(np.concatenate([[last_t], t[:-1]]))
+        if back.any():
+            i = int(np.argmax(back))
+            before = last_t if i == 0 else int(np.max(t[:i]))
+            if not noted:
+                noted = True
+                report.notes.append(f"{path}: row {int(rows[i])}: time goes back or repeats ({int(t[i])} ns after "
+                                    f"{before} ns): row dropped (first of {_BACK})")
+            if back.all():
+                report.skipped_scans.append(f"{path}: every row's time at or before the previous scan's end "
+                                            f"({last_t} ns): scan out of order, dropped")
+                continue
+            report.dropped_rows[_BACK] += int(back.sum())
+            keep = scan.keep.copy()
+            keep[rows[back]] = False
+            scan = Scan(scan.path, scan.t_ns, scan.azimuth_rad, scan.power, keep, scan.drop_reason)
+        n_drop = int(scan.keep.size - np.count_nonzero(scan.keep)) - int(back.sum())
         if n_drop:
             report.dropped_rows[scan.drop_reason or "dropped"] += n_drop
         report.turns += 1

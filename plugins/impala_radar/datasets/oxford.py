@@ -21,7 +21,17 @@ import numpy as np
 
 from impala_flow import msgs
 
-from .common import DatasetError, ImportReport, NavtechDataset, Scan, navtech_config, numbers, read_csv_columns
+from .common import (
+    DatasetError,
+    ImportReport,
+    NavtechDataset,
+    Scan,
+    gap_summary,
+    navtech_config,
+    numbers,
+    read_csv_columns,
+    time_steps_back,
+)
 from .navtech_png import ccw_azimuth, png_header, read_navtech_png, rotation_hz_of
 
 __all__ = ["OXFORD_RANGE_RESOLUTION_M", "OXFORD_AZIMUTH_OFFSET_DEG", "OXFORD_README_RESOLUTION_M",
@@ -80,6 +90,37 @@ class NavtechPngDataset(NavtechDataset):
             f"{self.sensor}-{self.name}", first.power.shape[1], self.range_resolution_m,
             range_offset_m=range_offset_bins * self.range_resolution_m, beams_per_turn=rows,
             rotation_hz=rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows))
+        if report is not None:
+            self._report_scan_times(report)
+
+    def _report_scan_times(self, report: ImportReport) -> None:
+        """The scans' times (file names, sorted: never back nor repeated), the index file's
+        when there is one (``radar.timestamps``: lines going back or repeated, times listed
+        without a PNG), and the gaps between scans, as lines of the import block."""
+        stamps = np.array(self.scan_stamps_us, dtype=np.int64)
+        back = "scan files: none (named by time)"
+        listed_path = self.folder / "radar.timestamps"
+        missing = ""
+        if listed_path.is_file():
+            listed = _read_timestamps(listed_path)
+            drop = time_steps_back(listed)
+            if drop.any():
+                first = int(np.argmax(drop))
+                back += (f"; {listed_path.name}: {int(drop.sum())} line(s) dropped (time going back or repeated; "
+                         f"first line {first + 1})")
+            listed = listed[~drop]
+            absent = np.setdiff1d(listed, stamps)
+            absent = absent[(absent > stamps[0]) & (absent < stamps[-1])]  # a sample may be a part of the drive
+            if absent.size:
+                missing = (f"; {absent.size} scan(s) listed in {listed_path.name} without a PNG (first "
+                           f"{int(absent[0])}.png), not read")
+            unlisted = np.setdiff1d(stamps, listed)
+            if unlisted.size:
+                report.notes.append(f"{unlisted.size} PNG file(s) not listed in {listed_path.name} (first "
+                                    f"{int(unlisted[0])}.png): read")
+        report.fact("times back", back)
+        report.fact("radar gaps", gap_summary(stamps * 1000, 1e9 / self.config.rotation_hz,
+                                              [f"{s}.png" for s in self.scan_stamps_us]) + missing)
 
     def read_scan(self, k: int) -> Scan:
         path = self.scan_paths[k]
@@ -90,6 +131,20 @@ class NavtechPngDataset(NavtechDataset):
 
     def duration_hint_ns(self) -> int | None:
         return (self.scan_stamps_us[-1] - self.scan_stamps_us[0]) * 1000 + int(1e9 / self.config.rotation_hz)
+
+
+def _read_timestamps(path: Path) -> np.ndarray:
+    """The first column (us) of an Oxford ``<sensor>.timestamps`` file, in file order."""
+    out = []
+    with open(path) as f:
+        for n, line in enumerate(f, start=1):
+            parts = line.split()
+            if not parts:
+                continue
+            if not parts[0].isdigit():
+                raise DatasetError(f"{path}: line {n}: expected '<timestamp_us> <chunk>', got {line.strip()!r}")
+            out.append(int(parts[0]))
+    return np.array(out, dtype=np.int64)
 
 
 class OxfordDataset(NavtechPngDataset):
@@ -109,16 +164,28 @@ class OxfordDataset(NavtechPngDataset):
             report.notes.append(f"no {gt_path.relative_to(self.folder)}: no truth poses")
             return None
         rel = read_oxford_ground_truth(gt_path)
-        wanted = np.array(self.scan_stamps_us, dtype=np.int64) * 1000
-        rel = rel.select(np.isin(rel.source_radar_t_ns, wanted))
-        rel = rel.select(np.argsort(rel.source_t_ns, kind="stable"))
+        name = gt_path.name
+        back = time_steps_back(rel.source_t_ns)
+        if back.any():
+            rows = np.flatnonzero(back) + 2
+            report.fact("times back", report.facts.get("times back", "") + f"; {name}: {int(back.sum())} row(s) "
+                        f"dropped (source time going back or repeated; first row {rows[0]})")
+            rel = rel.select(~back)
+        # the rows whose source scan lies within the scans (a scan file missing in between keeps the chain)
+        first, last = self.scan_stamps_us[0] * 1000, self.scan_stamps_us[-1] * 1000
+        rel = rel.select((rel.source_radar_t_ns >= first) & (rel.source_radar_t_ns <= last))
         if not len(rel.x_m):
-            report.notes.append(f"{gt_path.name}: no row for these scans: no truth poses")
+            report.notes.append(f"{name}: no row for these scans: no truth poses")
             return None
-        try:
-            return compose_relative_poses(rel)
-        except ValueError as e:
-            raise DatasetError(f"{gt_path}: {e}") from None
+        brk = np.flatnonzero(rel.destination_t_ns[1:] != rel.source_t_ns[:-1])
+        if brk.size:
+            k = int(brk[0]) + 1
+            report.notes.append(f"{name}: the rows do not chain after {k} of them (destination "
+                                f"{rel.destination_t_ns[k]} ns is not the previous source): truth stops there")
+            rel = rel.select(np.arange(len(rel.x_m)) < k)
+        report.fact("truth", "chained radar odometry (the dataset's gt/radar_odometry.csv: centimetre-level per "
+                    "scan pair, drifting over the drive); heading known")
+        return compose_relative_poses(rel)
 
 
 @dataclass(eq=False)

@@ -12,17 +12,36 @@
   (clockwise) and the dataset's SDK say. So ``rotation="cw"`` by default and the project's
   azimuth is ``wrap(-a + radians(azimuth_offset_deg))`` (``"ccw"``: ``wrap(a + offset)``).
 * **Time.** ``Navtech_Polar.txt`` gives one time per frame (``Frame: 000001 Time: <Unix s>``),
-  taken as the time of column 0. The rotation period P is the median interval between
-  frames; column j of frame i is at ``t_i + floor(j span_i / N)`` with
-  ``span_i = min(P, t_(i+1) - t_i)`` (P for the last frame), so the beam times never go back
-  even when a frame time comes early.
+  taken as the time of column 0; the nanoseconds are written without their leading zeros and
+  padded on the left (RADIATE's SDK). A frame whose time goes back or repeats the previous is
+  dropped and reported. The stamps are the logger's: when it falls behind, frames are stamped
+  late and catch up (:func:`turn_clock`); those go back on the radar's turn clock (option
+  ``retime``). A listed frame without its PNG is not read. Column j of frame i is at
+  ``t_i + floor(j span_i / N)`` with ``span_i = min(P, t_(next listed frame) - t_i)``, P the
+  turn period: a turn never spreads over a gap. Gaps (an interval over 1.5 P: round(dt / P) - 1
+  turns missing) are reported, never an error.
 * **Range.** Bin k at ``(k + range_offset_bins) resolution`` (0.5: bin centres, as Navtech).
-* **Truth.** ``GPS_IMU_Twist/<frame>.txt`` (line 1: ``latitude, longitude, altitude``; line 5:
-  the IMU orientation quaternion ``x, y, z, w``) with times in ``GPS_IMU_Twist.txt``. The
-  fixes inside the scans' time span become poses in frame ``odom``: WGS-84 to a local
-  East-North frame at the first fix, yaw from the quaternion taken as ENU-referenced with a
-  forward-left-up body (ROS REP 103; not checked on data: the shared sample has no GPS). A
-  missing folder or fixes outside the scans' times give a note, not an error.
+* **Truth.** ``GPS_IMU_Twist/<frame>.txt`` (line 1: ``latitude, longitude, altitude``; lines 2-4:
+  the position covariance, East-North-Up as ROS's NavSatFix; line 5: the IMU orientation
+  quaternion ``x, y, z, w``) with times in ``GPS_IMU_Twist.txt``. Every fix is written twice
+  (merged); a time going back (a receiver clock step) is dropped with every fix until the time
+  passes the one before the step; a new time with exactly the previous position is a stale fix,
+  merged (on the head the receiver's fix moves >= 0.5 mm every 50 ms even at rest, so an exact
+  repeat is no new solution); a listed file that is missing is counted. Each is reported.
+  The fixes within the scans' times become poses in frame ``odom``: WGS-84 to a local
+  East-North frame, **origin at the first fix, x axis along the first known course over
+  ground** (east if the car never moves). Positions are the GPS's (a consumer receiver,
+  metre-level: at rest on the head, radar images unchanged, its fixes wander ~2 m in 20 s
+  while its own std says 0.2-0.5 m), ``cov_xyt[:2, :2]`` its covariance rotated into odom. The
+  heading is the **course over ground** (:func:`course_over_ground`: the chord over 1 s) where
+  the speed is at least 2 m/s, with ``cov_xyt[2, 2] = (0.06 m/s / v)^2 + (1 deg)^2`` (see
+  :data:`COURSE_MIN_SPEED_MPS`); reversing (course opposite to the IMU yaw) turns it by 180 deg.
+  Elsewhere it is unknown: ``cov_xyt[2, 2] = msgs.HEADING_UNKNOWN_VAR_RAD2`` and theta held at
+  the last known heading (0 before the first), so a car at rest gives a still heading. The
+  IMU quaternion (taken as ENU yaw) is not the truth: on the head it differs from the course
+  by -7.6 deg on average while driving (std 2.5 deg; -5.7 deg on the full drive per issue 23);
+  the import block says by how much on each import. A missing folder or fixes outside the
+  scans' times give a note, not an error.
 """
 
 from __future__ import annotations
