@@ -279,9 +279,11 @@ def gap_summary(t_ns: np.ndarray, period_ns: float, names: list[str] | None = No
     interval longer than 1.5 periods is a gap of ``round(dt / period) - 1`` missing samples.
     ``names`` (one per sample, e.g. frame numbers or files) name the sample after the longest."""
     dt = np.diff(np.asarray(t_ns, dtype=np.int64))
+    if not dt.size:
+        return f"none (one {what})"
     gap = np.flatnonzero(dt > 1.5 * period_ns)
     if not gap.size:
-        return f"none (no {what} missing; longest interval {dt.max() / 1e9 if dt.size else 0.0:.3f} s)"
+        return f"none (no {what} missing; longest interval {dt.max() / 1e9:.3f} s)"
     missing = np.rint(dt[gap] / period_ns).astype(np.int64) - 1
     k = int(gap[np.argmax(dt[gap])])
     after = f" before {names[k + 1]}" if names is not None else ""
