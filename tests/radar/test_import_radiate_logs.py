@@ -256,3 +256,43 @@ def test_real_head_reads_unpatched_with_its_counts():
     assert known[(ts > 72) & (ts < 98)].all()  # driving at ~10 m/s (across the GPS's 0.8 s gap too)
     imu = float(report.facts["IMU yaw"].split(" deg")[0])
     assert -9.0 < imu < -5.0  # -5.7 deg on the full drive per the issue
+
+
+def _cartesian(scan, cell_m=0.25, half_m=60.0):
+    """A turn's pixels (floor removed, first 6 m blanked) on a vehicle-frame grid, row 0 forward."""
+    import cv2
+
+    img = scan.power.T.astype(np.float32) * 255.0  # range bins x azimuths
+    img = np.maximum(img - np.median(img, axis=1, keepdims=True), 0.0)
+    img[:35] = 0.0
+    n = int(half_m / cell_m)
+    xs = (np.arange(2 * n) - n + 0.5)[::-1] * cell_m
+    x, y = np.meshgrid(xs, xs, indexing="ij")
+    col = np.mod(-np.arctan2(y, x), 2 * np.pi) / (2 * np.pi) * img.shape[1]  # clockwise columns
+    rng = np.hypot(x, y) / 0.17361 - 0.5
+    return cv2.remap(img, col.astype(np.float32), rng.astype(np.float32), cv2.INTER_LINEAR, borderValue=0.0)
+
+
+def test_real_head_late_frame_is_one_turn_not_two():
+    """Frames 335 and 336 are stamped 0.516 s apart while the car drives at ~10 m/s. The radar
+    (phase correlation of the two images, independent of any time) moved one turn's distance;
+    the GPS over the turn-clock times agrees, over the stamps it says twice as far."""
+    import cv2
+
+    folder = _head()
+    report = ImportReport()
+    ds = open_dataset("radiate", str(folder), report=report)
+    t, xyt, _ = ds.truth(report)
+    k = int(np.flatnonzero(ds.frames == 335)[0])
+    a, b = _cartesian(ds.read_scan(k)), _cartesian(ds.read_scan(k + 1))
+    (dc, dr), response = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(a.shape[::-1], cv2.CV_32F))
+    radar_m = 0.25 * math.hypot(dc, dr)
+    assert response > 0.3 and 2.2 < radar_m < 2.8
+
+    def gps_m(t0, t1):
+        return math.hypot(*(np.interp(t1, t, xyt[:, i]) - np.interp(t0, t, xyt[:, i]) for i in (0, 1)))
+
+    stamped = gps_m(ds.frame_t_ns[k], ds.frame_t_ns[k + 1])
+    clock = gps_m(ds.turn_t_ns[k], ds.turn_t_ns[k + 1])
+    assert (ds.frame_t_ns[k + 1] - ds.frame_t_ns[k]) / 1e9 == pytest.approx(0.516, abs=1e-3)
+    assert stamped > 4.0 and abs(clock - radar_m) < 0.4
