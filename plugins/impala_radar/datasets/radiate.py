@@ -160,10 +160,11 @@ def turn_clock(t_ns: np.ndarray, window: int = LATE_WINDOW_FRAMES,
     ``min over the next window frames j of t_j - (clock_j - clock_k)``; a frame whose stamp
     exceeds that by more than ``tolerance_turns`` of a turn is ``late`` and takes that time;
     the others keep their stamp. Turns really missing (the later frames do not catch up) stay
-    gaps. The clock's period is local (the head's drifts by 0.1 %): the median, over +-100
-    frames, of ``(t_(k+m) - t_k) / m`` (m = 20 frames, fewer in short logs) within 1 % of the
-    overall median (catch-up runs and
-    jumps excluded: they bias even the median interval to 0.249 s). ``period_ns``: the overall
+    gaps; so do late frames at the very end of a log (nothing after them to catch up). The
+    clock's period is local (the head's drifts by 0.1 %): the median, over +-100 frames, of
+    ``(t_(k+m) - t_k) / m`` (m = 20 frames, fewer in short logs) within 1 % of the overall
+    median (catch-up runs and jumps excluded: they bias even the median interval to 0.249 s).
+    ``period_ns``: the overall
     median."""
     t = np.asarray(t_ns, dtype=np.int64)
     n = t.size
@@ -363,6 +364,9 @@ class RadiateDataset(NavtechDataset):
         if not (self.folder / "GPS_IMU_Twist").is_dir():
             report.notes.append("no GPS_IMU_Twist/ folder: no truth poses")
             return None
+        if not (self.folder / "GPS_IMU_Twist.txt").is_file():
+            report.notes.append("no GPS_IMU_Twist.txt (the fixes' times): no truth poses")
+            return None
         idx = read_frame_times(self.folder / "GPS_IMU_Twist.txt", equal="keep")
         name = idx.path.name
         radar_padded = report.facts.get("padded times", "").split(" (")[0]
@@ -417,7 +421,7 @@ class RadiateDataset(NavtechDataset):
         xyt, cov = _odom_truth(east, north, heading, moving, speed, rows[:, 3:12])
         n, k = t_ns.size, int(moving.sum())
         axis = "x along the first course over ground" if k else "x east (no course known: never moving)"
-        sig = np.sqrt(np.stack([rows[:, 3], rows[:, 7]]))
+        sig = np.sqrt(np.maximum(np.stack([rows[:, 3], rows[:, 7]]), 0.0))
         report.fact("truth", f"positions from GPS (consumer receiver, metre-level; its own std {sig.min():.2f}-"
                     f"{sig.max():.2f} m) in frame odom: origin the first fix, {axis}")
         std = np.degrees(np.sqrt(cov[moving, 2, 2])) if k else np.zeros(1)
