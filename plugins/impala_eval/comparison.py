@@ -23,7 +23,8 @@ after it). The report folder (``report``) holds:
   truth's path over the final trajectory's span), ``N_final_err_m``, ``N_mean_err_m``,
   ``N_max_err_m``, ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``,
   ``N_end_to_end_err_m`` (the last pose seen from the first against the truth's: no
-  alignment, the drift a loop closure removes); ``path_length_m`` (the longest final
+  alignment, the drift a loop closure removes), ``N_poses_in_truth_gaps`` (left out: inside
+  a gap of the truth, see ``metrics.gap_spans_ns``); ``path_length_m`` (the longest final
   trajectory's); the baseline's ``baseline_ate_rmse_m``, ``baseline_final_err_m``,
   ``baseline_mean_err_m``, ``baseline_max_err_m``, ``baseline_end_to_end_err_m``,
   ``baseline_ate_pct``, ``baseline_poses``, ``baseline_poses_outside_truth``. An estimate
@@ -62,7 +63,9 @@ from .metrics import (
     align_first,
     apply_rigid,
     distance_travelled_m,
+    gap_spans_ns,
     heading_known_at,
+    in_spans,
     interpolate_truth,
     rigid_align_2d,
 )
@@ -257,11 +260,16 @@ class TrajectoryComparison(Component):
         None when no pose lies inside the truth's span (or, aligned on the first pose, none has
         a known truth heading). ``tk``: truth heading known per truth pose (None: all)."""
         truth, inside = interpolate_truth(t_ns, tt, tx)
-        known = heading_known_at(t_ns, tt, tk)[inside]
+        in_gap = inside & in_spans(t_ns, gap_spans_ns(tt))
+        if in_gap.any():
+            self.log.warning("%s: %d of %d poses inside gaps of the truth (no truth to interpolate), left out",
+                             name, int(np.count_nonzero(in_gap)), len(t_ns))
+        known = heading_known_at(t_ns, tt, tk)[inside & ~in_gap]
         outside = int(np.count_nonzero(~inside))
         if outside:  # one or two at the ends are routine (a truth that starts or stops a little late)
             (self.log.info if outside <= 2 else self.log.warning)(
                 "%s: %d of %d poses outside the truth's time span, left out", name, outside, len(t_ns))
+        inside &= ~in_gap
         if not np.any(inside):
             return None
         est, truth, t_in = xyt[inside], truth[inside], t_ns[inside]
@@ -280,7 +288,8 @@ class TrajectoryComparison(Component):
         travelled -= travelled[0]
         ate = float(np.sqrt(np.mean(err ** 2)))
         return {"ate_rmse_m": ate, "final_err_m": float(err[-1]), "mean_err_m": float(np.mean(err)),
-                "max_err_m": float(np.max(err)), "poses_outside_truth": outside, "path_m": float(travelled[-1]),
+                "max_err_m": float(np.max(err)), "poses_outside_truth": outside,
+                "poses_in_truth_gaps": int(np.count_nonzero(in_gap)), "path_m": float(travelled[-1]),
                 "end_to_end_err_m": None if k0 is None else
                 float(np.hypot(*(_rel(est[k0], est[-1]) - _rel(truth[k0], truth[-1])))),
                 "r": r, "t": tr, "err": err, "dist": travelled, "xy": aligned[:, :2], "t_ns": t_in}
@@ -338,7 +347,8 @@ class TrajectoryComparison(Component):
             out[f"{name}_poses_outside_truth"] = int(len(t_f)) if s is None else s["poses_outside_truth"]
             if s is None:  # the note on the poses outside says it
                 continue
-            for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+            for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m",
+                      "poses_in_truth_gaps"):
                 out[f"{name}_{k}"] = s[k]
             if s["path_m"] > 0:
                 out[f"{name}_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]

@@ -18,7 +18,7 @@ __all__ = [
     "interpolate_truth", "rigid_align_2d", "align_first", "apply_rigid", "path_length_m",
     "distance_travelled_m", "relative_error_pct", "TrajectoryMetrics", "trajectory_metrics",
     "PairErrors", "pair_errors", "segment_error_pct", "segment_errors_pct", "TwistErrors", "twist_errors",
-    "heading_known_at", "SEGMENT_LENGTHS_M",
+    "heading_known_at", "SEGMENT_LENGTHS_M", "gap_spans_ns", "in_spans",
 ]
 
 
@@ -38,6 +38,31 @@ def interpolate_truth(t_ns: np.ndarray, truth_t_ns: np.ndarray, truth_xyt: np.nd
     y = np.interp(rel, rel_t, truth_xyt[:, 1])
     th = np.interp(rel, rel_t, np.unwrap(truth_xyt[:, 2]))
     return np.column_stack([x, y, wrap_angle(th)]), inside
+
+
+def gap_spans_ns(t_ns: np.ndarray, factor: float = 3.0) -> np.ndarray:
+    """(K, 2) int64: the (start, end) stamps of the intervals with no sample longer than
+    ``factor`` periods. Repeated stamps (a GPS writing each fix twice) count once; the period
+    is the median interval, intervals shorter than a quarter of the mean one (a fix repeated
+    with a nearly equal stamp) left out."""
+    t = np.unique(np.asarray(t_ns, np.int64))
+    if len(t) < 3:
+        return np.zeros((0, 2), np.int64)
+    dt = np.diff(t)
+    period = float(np.median(dt[dt >= 0.25 * float(np.mean(dt))]))
+    at = np.flatnonzero(dt > factor * period)
+    return np.column_stack([t[at], t[at + 1]])
+
+
+def in_spans(t_ns: np.ndarray, spans_ns: np.ndarray, half_window_ns: int = 0) -> np.ndarray:
+    """Mask of the times whose window ``t +- half_window_ns`` overlaps the inside of one of the
+    (start, end) spans (sorted, disjoint): with 0, the times strictly inside one."""
+    t = np.asarray(t_ns, np.int64)
+    if not len(spans_ns):
+        return np.zeros(len(t), bool)
+    k = np.searchsorted(spans_ns[:, 0], t + half_window_ns, "left") - 1  # the last span starting before t + h
+    kk = np.maximum(k, 0)
+    return (k >= 0) & (spans_ns[kk, 1] > t - half_window_ns)
 
 
 def heading_known_at(t_ns: np.ndarray, truth_t_ns: np.ndarray, truth_known: np.ndarray | None) -> np.ndarray:
@@ -234,6 +259,7 @@ class TrajectoryMetrics:
     heading_known: np.ndarray  # per matched pose: the truth heading there is known
     segment_errors_pct: dict[float, np.ndarray]  # per length (m) that fits: each segment's error (%)
     first_pose: int  # the pose the first-pose alignment uses (the first with a known truth heading)
+    n_in_truth_gaps: int = 0  # estimated poses left out: no truth around them (a truth gap, see gap_spans_ns)
 
     @property
     def ate_pct(self) -> float | None:
@@ -249,6 +275,7 @@ class TrajectoryMetrics:
             v = getattr(self, k)
             out[prefix + k] = None if isinstance(v, float) and not math.isfinite(v) else v
         out[prefix + "n_heading_unknown"] = int(np.count_nonzero(~self.heading_known))
+        out[prefix + "n_poses_in_truth_gaps"] = self.n_in_truth_gaps
         out[prefix + "rel_err_segments"] = int(sum(len(e) for e in self.segment_errors_pct.values()))
         for L, e in self.segment_errors_pct.items():
             out[prefix + f"rel_err_{L:g}m_pct"] = float(np.mean(e))
@@ -264,6 +291,8 @@ def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.nda
                        truth_heading_known: np.ndarray | None = None) -> TrajectoryMetrics:
     """All metrics of an estimated trajectory against the truth (``align``: rigid|first).
 
+    Estimated poses outside the truth's span or inside one of its gaps (:func:`gap_spans_ns`:
+    nothing to interpolate from) are left out and counted (``n_poses_in_truth_gaps``).
     ATE after the chosen alignment: ``rigid`` fits the positions only (SE(2) least squares,
     as evo_ape --align); ``first`` puts the first estimated pose whose truth heading is known
     onto the truth (ValueError when none is). The final drift is always measured after that
@@ -276,10 +305,13 @@ def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.nda
     """
     t_ns = np.asarray(t_ns, np.int64)
     truth, inside = interpolate_truth(t_ns, truth_t_ns, truth_xyt)
+    in_gap = in_spans(t_ns, gap_spans_ns(truth_t_ns)) & inside
+    inside &= ~in_gap
     known = heading_known_at(t_ns, truth_t_ns, truth_heading_known)[inside]
     t_ns, est, truth = t_ns[inside], np.asarray(est_xyt, float)[inside], truth[inside]
     if len(t_ns) < 2:
-        raise ValueError("fewer than two estimated poses fall inside the truth's time span")
+        raise ValueError(f"fewer than two estimated poses fall inside the truth's time span (outside its gaps): "
+                         f"{len(t_ns)} of {len(inside)}")
     k0 = int(np.argmax(known)) if known.any() else None
     if align == "first" and k0 is None:
         raise ValueError(f"align: first needs a known truth heading at a matched pose, and the truth's heading is "
@@ -313,7 +345,7 @@ def trajectory_metrics(t_ns: np.ndarray, est_xyt: np.ndarray, truth_t_ns: np.nda
         rel_err_pct=float(np.mean(np.concatenate(list(segments.values())))) if segments else None,
         drift_pct=drift, path_length_m=length, n_poses=int(len(t_ns)), align=align, rotation=r, translation_m=t,
         pairs=pair_errors(est, truth, t_ns, known), heading_known=known, segment_errors_pct=segments,
-        first_pose=k0 or 0,
+        first_pose=k0 or 0, n_in_truth_gaps=int(np.count_nonzero(in_gap)),
     )
 
 
@@ -350,12 +382,14 @@ def twist_errors(t_ns: np.ndarray, speed_mps: np.ndarray, yaw_rate_radps: np.nda
     ``window_s`` centred on each estimate (the truth interpolated at both ends): the mean
     velocity over the window, which a two-turn estimate also measures; the noise of a 2 cm
     RTK fix stays below 0.03 m/s over 1 s. Estimates whose window leaves the truth's span
-    are left out. Where the truth heading is unknown at either end (``truth_heading_known``
-    per truth sample, None: known everywhere) the yaw rate is not scored and the true speed
-    is the displacement's length with the estimate's sign."""
+    or overlaps one of its gaps (:func:`gap_spans_ns`) are left out. Where the truth heading
+    is unknown at either end (``truth_heading_known`` per truth sample, None: known
+    everywhere) the yaw rate is not scored and the true speed is the displacement's length
+    with the estimate's sign."""
     t_ns = np.asarray(t_ns, np.int64)
     h = int(round(0.5 * window_s * 1e9))
     inside = (t_ns - h >= truth_t_ns[0]) & (t_ns + h <= truth_t_ns[-1])
+    inside &= ~in_spans(t_ns, gap_spans_ns(truth_t_ns), h)  # no truth across a gap
     t_ns = t_ns[inside]
     a, _ = interpolate_truth(t_ns - h, truth_t_ns, truth_xyt)
     b, _ = interpolate_truth(t_ns + h, truth_t_ns, truth_xyt)

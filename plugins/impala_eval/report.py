@@ -25,7 +25,7 @@ import numpy as np
 
 from impala_flow.msgs import Grid
 
-from .metrics import TrajectoryMetrics, TwistErrors
+from .metrics import TrajectoryMetrics, TwistErrors, gap_spans_ns
 
 __all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps", "gap_summary"]
 
@@ -35,16 +35,9 @@ _EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
 
 def find_gaps(t_ns: np.ndarray, factor: float = 3.0) -> list[list[float]]:
     """Time ranges with no sample: ``[start_s, end_s]`` (mission seconds) between consecutive
-    samples more than ``factor`` periods apart (lost chunks, a dropped sensor). Repeated stamps
-    (a GPS writing each fix twice) count once; the period is the median interval, intervals
-    shorter than a quarter of the mean one (a fix repeated with a nearly equal stamp) left out."""
-    t = np.unique(np.asarray(t_ns, np.int64))
-    if len(t) < 3:
-        return []
-    dt = np.diff(t)
-    period = float(np.median(dt[dt >= 0.25 * float(np.mean(dt))]))
-    at = np.nonzero(dt > factor * period)[0]
-    return [[round(float(t[i]) * 1e-9, 6), round(float(t[i + 1]) * 1e-9, 6)] for i in at]
+    samples more than ``factor`` periods apart (lost chunks, a dropped sensor); see
+    :func:`~impala_eval.metrics.gap_spans_ns` for the period (repeated stamps count once)."""
+    return [[round(float(a) * 1e-9, 6), round(float(b) * 1e-9, 6)] for a, b in gap_spans_ns(t_ns, factor).tolist()]
 
 
 def gap_summary(gaps: dict[str, list[list[float]]]) -> str:
@@ -275,6 +268,8 @@ def format_metrics(figures: dict[str, Any]) -> str:
                      f"relative errors there left out ({skipped} pairs); ATE over all (positions)"
                      + (f"; first-pose alignment on pose {figures['first_aligned_pose']}"
                         if figures.get("first_aligned_pose") else ""))
+    if figures.get("n_poses_in_truth_gaps"):
+        lines.append(f"{figures['n_poses_in_truth_gaps']} estimated poses inside gaps of the truth: left out")
     if _gap_text(figures):
         lines.append(f"DATA MISSING (no sample): {_gap_text(figures)}; the metrics cover only what was received")
     return "\n".join(lines)
