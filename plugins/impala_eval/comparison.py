@@ -372,7 +372,8 @@ class TrajectoryComparison(Component):
             out["baseline_poses"] = int(len(bt))
             out["baseline_poses_outside_truth"] = int(len(bt)) if s is None else s["poses_outside_truth"]
             if s is not None:
-                for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+                for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m",
+                          "poses_in_truth_gaps"):
                     out[f"baseline_{k}"] = s[k]
                 if s["path_m"] > 0:
                     out["baseline_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
@@ -428,6 +429,8 @@ class TrajectoryComparison(Component):
         outside = [f"{n}: {f[f'{n}_poses_outside_truth']} of {f[f'{n}_poses']} poses outside the truth's time "
                    "span, left out."
                    for n in (*self.estimates, "baseline") if f.get(f"{n}_poses_outside_truth")]
+        outside += [f"{n}: {f[f'{n}_poses_in_truth_gaps']} poses inside gaps of the truth (nothing to interpolate "
+                    "from), left out." for n in (*self.estimates, "baseline") if f.get(f"{n}_poses_in_truth_gaps")]
         path = f" Truth path length {f['path_length_m']:.1f} m." if "path_length_m" in f else ""
         text = [f"# {self.title}", "",
                 f"Alignment: {self.align}.{path} Errors: positions against the truth interpolated at each pose's "
@@ -453,7 +456,10 @@ class TrajectoryComparison(Component):
         radar_map = self.map.get()
         if radar_map is not None and self._map_transform is not None:
             _show_map(ax, radar_map, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
-        ax.plot(*truth_xy.T, color="k", lw=0.8, label="truth", zorder=5)
+        import matplotlib.patheffects as pe  # after _figure: matplotlib is imported lazily
+
+        halo = [pe.Stroke(linewidth=3.2, foreground="w", alpha=0.9), pe.Normal()]  # readable over a dark map
+        ax.plot(*truth_xy.T, color="k", lw=1.0, label="truth", zorder=5, path_effects=halo)
         xys = [truth_xy]
         if self._baseline_xy is not None:
             ax.plot(*self._baseline_xy.T, "--", color="0.55", lw=1.0, zorder=2,
@@ -461,7 +467,7 @@ class TrajectoryComparison(Component):
             xys.append(self._baseline_xy)
         for n, c in self.curves.items():
             pct = f.get(f"{n}_ate_pct")
-            ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4,
+            ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4, path_effects=halo,
                     label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.3f} m" + (f" = {pct:.2f} %" if pct else "")
                     + f", final {f[f'{n}_final_err_m']:.3f} m)")
             ax.plot(*c["xy"][-1], "x", color=colour[n], ms=8, mew=2.0, zorder=6)
