@@ -99,6 +99,11 @@ def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = 
     ax.figure.colorbar(im, ax=ax, shrink=0.8, label=label)
 
 
+def _ate_label(m: TrajectoryMetrics) -> str:
+    pct = m.ate_pct
+    return f"ATE {m.ate_rmse_m:.2f} m" + (f" = {pct:.2f} % of {m.path_length_m:.0f} m" if pct is not None else "")
+
+
 def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
                  baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
                  transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM",
@@ -142,10 +147,13 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
     if baseline is not None:
         ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
-                ls="--", label=baseline_title)
-    ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2, label=title)
+                ls="--", label=f"{baseline_title} ({_ate_label(baseline)})")
+    ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2,
+            label=f"{title} ({_ate_label(est)})")
+    ax.plot(*est.est_aligned_xyt[-1, :2], "x", color=_EST, ms=8, mew=2.0, zorder=6)
     ax.plot(*est.truth_xyt[0, :2], "o", color="k", mfc="w", ms=7, mew=1.5, label="start", zorder=6)
-    ax.plot(*est.truth_xyt[-1, :2], "s", color="k", ms=6, label="end (truth)", zorder=6)
+    ax.plot(*est.truth_xyt[-1, :2], "s", color="k", mfc="w", ms=7, mew=1.5, label="end (x: the estimate's)",
+            zorder=6)
     xy = np.vstack([est.truth_xyt[:, :2], est.est_aligned_xyt[:, :2]])
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     pad = 0.15 * float(max(hi - lo)) + 5.0
