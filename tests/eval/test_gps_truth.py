@@ -10,7 +10,7 @@ import pytest
 
 from impala_eval import TrajectoryEvaluator
 from impala_eval.metrics import twist_errors
-from impala_eval.report import find_gaps, gap_summary
+from impala_eval.report import find_gaps, format_metrics, gap_summary
 from impala_flow.msgs import Pose2D, Twist2D
 from impala_flow.testing import ScriptedSource, run_components
 
@@ -163,6 +163,9 @@ def test_kitti_drift_of_a_scale_error_is_the_scale_error(tmp_path):
     assert f["rel_err_pct"] == pytest.approx(2.0, rel=1e-6) and f["rel_err_per_100m_pct"] == pytest.approx(2.0)
     summary = ev.summary()
     assert summary["rel_err_800m_pct"] == 2.0 and summary["rel_err_pct"] == 2.0
+    block = format_metrics(f)
+    assert "drift per segment length: 100 m 2.00 % (n=" in block and ", 800 m 2.00 % (n=" in block
+    assert "drift 100-800 m" in block and "ATE RMSE / path" in block
     assert summary["ate_pct"] == pytest.approx(100 * f["ate_rmse_m"] / f["path_length_m"], abs=1e-3)
 
 
@@ -175,3 +178,30 @@ def test_kitti_drift_of_a_heading_drift_is_the_chord_of_its_arc(tmp_path):
 
     for L in (100, 400, 800):  # a segment ends at the first pose L m on or further: up to one 2 m step
         assert chord_pct(L) * (1 - 1e-6) <= ev.figures[f"rel_err_{L}m_pct"] <= chord_pct(L + 2.0)
+
+
+def _compare(truth, est, tmp_path, **params):
+    from impala_eval.comparison import TrajectoryComparison
+
+    script = [(t, "truth", p) for t, p in truth]
+    script += [(int(t), "est", Pose2D(*p)) for t, p in zip(est[0], est[1].tolist(), strict=True)]
+    script.sort(key=lambda s: s[0])
+    comp = TrajectoryComparison("compare", estimates=["odo"], poses=["odo"], report=str(tmp_path), **params)
+    run_components(ScriptedSource("s", script), comp, connections=["s.truth -> compare.truth",
+                                                                   "s.est -> compare.odo"])
+    return comp
+
+
+def test_comparison_aligns_first_on_the_first_known_truth_heading(tmp_path, caplog):
+    d = g.drive(duration_s=60.0, stop_at_s=50.0)
+    t, xyt, known = g.gps(d, noise_m=0.0, white_m=0.0, heading_noise_deg=0.0, hole_s=None)
+    est = g.estimate(d, scale=1.0, yaw_per_m=0.0, noise_m=0.0, hole_s=None)  # the truth in another frame
+    comp = _compare(g.truth_poses(t, xyt, known), est, tmp_path / "some", align="first")
+    f = comp.figures
+    assert f["odo_ate_rmse_m"] < 1e-6 and f["odo_end_to_end_err_m"] < 1e-6  # placeholders (0) would not give 0
+    assert "Truth heading unknown at" in (tmp_path / "some" / "report.md").read_text()
+    with caplog.at_level(logging.WARNING):
+        comp = _compare(g.truth_poses(t, xyt, np.zeros(len(t), bool)), est, tmp_path / "none", align="first")
+    assert "odo_ate_rmse_m" not in comp.figures
+    msgs = [r.getMessage() for r in caplog.records]
+    assert len(msgs) == 1 and msgs[0].startswith("odo: align first needs a known truth heading"), msgs
