@@ -5,9 +5,11 @@ Figs. 8 and 9.
 Each estimate arrives on its own input (one per name in ``estimates``) as ``Trajectory2D``
 samples: one sample = one iteration (the EKF and iSAM2 every period, the batch LM after
 each of its runs), a whole trajectory re-estimated each time, the last one the final
-estimate. The truth (``truth``, RTK-GPS) is interpolated at each pose's time; poses outside
-its span are dropped and counted. Everything is computed at stop() (truth stamped later
-than a trajectory may arrive after it). The report folder (``report``) holds:
+estimate; or, for the names also in ``poses``, as ``Pose2D`` samples (an odometry, R-SLAM's
+pose): the whole stream is then the final trajectory (one iteration). The truth (``truth``,
+RTK-GPS) is interpolated at each pose's time; poses outside its span are dropped and
+counted. Everything is computed at stop() (truth stamped later than a trajectory may arrive
+after it). The report folder (``report``) holds:
 
 - ``trajectories.png`` (Fig. 8): the final trajectories with the truth and the ``baseline``
   (dead reckoning), over the radar map of the optional ``map`` input (Figs. 5 and 7), which
@@ -21,7 +23,8 @@ than a trajectory may arrive after it). The report folder (``report``) holds:
   truth's path over the final trajectory's span), ``N_final_err_m``, ``N_mean_err_m``,
   ``N_max_err_m``, ``N_iterations``, ``N_poses``, ``N_poses_outside_truth``,
   ``N_end_to_end_err_m`` (the last pose seen from the first against the truth's: no
-  alignment, the drift a loop closure removes); ``path_length_m`` (the longest final
+  alignment, the drift a loop closure removes), ``N_poses_in_truth_gaps`` (left out: inside
+  a gap of the truth, see ``metrics.gap_spans_ns``); ``path_length_m`` (the longest final
   trajectory's); the baseline's ``baseline_ate_rmse_m``, ``baseline_final_err_m``,
   ``baseline_mean_err_m``, ``baseline_max_err_m``, ``baseline_end_to_end_err_m``,
   ``baseline_ate_pct``, ``baseline_poses``, ``baseline_poses_outside_truth``. An estimate
@@ -36,6 +39,11 @@ at the first estimated pose's time) or ``rigid`` (least squares on the final tra
 positions, rotation and translation). Either transform is computed once per estimate, on
 its final trajectory, and used for all its iterations; the estimates are moved into the
 truth's frame (the errors are those of the truth moved onto the estimate).
+
+Truth from a GPS: repeated time stamps count once (the first kept); a truth pose whose
+heading is unknown (``Pose2D.heading_known``, at rest) is used for its position only: ``first``
+aligns on the first final pose whose truth heading is known (an estimate with none is left
+out, with a one-line warning) and the end-to-end error starts there.
 """
 
 from __future__ import annotations
@@ -50,7 +58,17 @@ import numpy as np
 from impala_flow.component import Component, Input, Output, Param, ParamError
 from impala_flow.msgs import Grid, Pose2D, Trajectory2D
 
-from .metrics import _rel, align_first, apply_rigid, distance_travelled_m, interpolate_truth, rigid_align_2d
+from .metrics import (
+    _rel,
+    align_first,
+    apply_rigid,
+    distance_travelled_m,
+    gap_spans_ns,
+    heading_known_at,
+    in_spans,
+    interpolate_truth,
+    rigid_align_2d,
+)
 from .report import METRICS_FILE, _figure, _show_map
 
 __all__ = ["TrajectoryComparison"]
@@ -160,6 +178,8 @@ class TrajectoryComparison(Component):
 
     estimates = Param(list, default=["ekf", "isam2", "lm"], doc="one Trajectory2D input per name (one sample = "
                       "one iteration, the last one the final estimate)")
+    poses = Param(list, default=[], doc="names of `estimates` whose input is a Pose2D stream (the whole stream "
+                  "one final trajectory)")
     titles = Param(list, default=[], doc="names in the figures, one per estimate ([]: the input names)")
     report = Param(str, default="", path="write_dir", doc="report folder ('' = metrics only, no files)")
     align = Param(str, default="first", choices=("first", "rigid"),
@@ -171,6 +191,7 @@ class TrajectoryComparison(Component):
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
         names = params.get("estimates", cls.estimates.default)
         titles = params.get("titles", [])
+        poses = params.get("poses", [])
         taken = set(cls.__inputs__) | set(cls.__params__)
         if not names:
             raise ParamError("parameter 'estimates': give at least one name")
@@ -183,16 +204,27 @@ class TrajectoryComparison(Component):
         if titles and len(titles) != len(names):
             raise ParamError(f"parameter 'titles': {len(titles)} titles for {len(names)} estimates "
                              "(one per estimate, or [] for the names)")
+        stray = [n for n in poses if n not in names]
+        if stray:
+            raise ParamError(f"parameter 'poses': {stray} not in 'estimates' {names} (poses names the estimates "
+                             "that arrive as Pose2D streams)")
         ins = dict(cls.__inputs__)
         for n in names:
-            ins[n] = Input(Trajectory2D, maxsize=1 << 16, overflow="block", required=False,
-                           doc=f"iterations of estimate {n} (one Trajectory2D each)")
+            if n in poses:
+                ins[n] = Input(Pose2D, maxsize=1 << 20, required=False,
+                               doc=f"poses of estimate {n} (the whole stream its final trajectory)")
+            else:
+                ins[n] = Input(Trajectory2D, maxsize=1 << 16, overflow="block", required=False,
+                               doc=f"iterations of estimate {n} (one Trajectory2D each)")
         return ins, {}
 
     def start(self) -> None:
         self.samples = {n: _Iterations(budget=MAX_ROWS // len(self.estimates)) for n in self.estimates}
         self.truth_t: list[int] = []
         self.truth_xyt: list[tuple[float, float, float]] = []
+        self.truth_known: list[bool] = []
+        self.pose_streams: dict[str, tuple[list[int], list[tuple[float, float, float]]]] = {
+            n: ([], []) for n in self.poses}
         self.base_t: list[int] = []
         self.base_xyt: list[tuple[float, float, float]] = []
         self.figures: dict[str, Any] = {}
@@ -207,6 +239,11 @@ class TrajectoryComparison(Component):
         if self.trigger == "truth":
             self.truth_t.append(s.timestamp)
             self.truth_xyt.append((d.x_m, d.y_m, d.theta_rad))
+            self.truth_known.append(d.heading_known)
+        elif self.trigger in self.pose_streams:
+            ts, xs = self.pose_streams[self.trigger]
+            ts.append(s.timestamp)
+            xs.append((d.x_m, d.y_m, d.theta_rad))
         elif self.trigger == "baseline":
             self.base_t.append(s.timestamp)
             self.base_xyt.append((d.x_m, d.y_m, d.theta_rad))
@@ -218,18 +255,32 @@ class TrajectoryComparison(Component):
 
     # --- metrics --------------------------------------------------------------------------
     def _score(self, name: str, t_ns: np.ndarray, xyt: np.ndarray, tt: np.ndarray, tx: np.ndarray,
-               dist_truth: np.ndarray) -> dict[str, Any] | None:
+               dist_truth: np.ndarray, tk: np.ndarray | None = None) -> dict[str, Any] | None:
         """Errors of one trajectory (the final estimate or the baseline) after its alignment;
-        None when no pose lies inside the truth's span."""
+        None when no pose lies inside the truth's span (or, aligned on the first pose, none has
+        a known truth heading). ``tk``: truth heading known per truth pose (None: all)."""
         truth, inside = interpolate_truth(t_ns, tt, tx)
+        in_gap = inside & in_spans(t_ns, gap_spans_ns(tt))
+        if in_gap.any():
+            self.log.warning("%s: %d of %d poses inside gaps of the truth (no truth to interpolate), left out",
+                             name, int(np.count_nonzero(in_gap)), len(t_ns))
+        known = heading_known_at(t_ns, tt, tk)[inside & ~in_gap]
         outside = int(np.count_nonzero(~inside))
         if outside:  # one or two at the ends are routine (a truth that starts or stops a little late)
             (self.log.info if outside <= 2 else self.log.warning)(
                 "%s: %d of %d poses outside the truth's time span, left out", name, outside, len(t_ns))
+        inside &= ~in_gap
         if not np.any(inside):
             return None
         est, truth, t_in = xyt[inside], truth[inside], t_ns[inside]
-        r, tr = rigid_align_2d(est[:, :2], truth[:, :2]) if self.align == "rigid" else align_first(est, truth)
+        k0 = int(np.argmax(known)) if known.any() else None
+        if k0 is None and self.align == "first":
+            self.log.warning("%s: align first needs a known truth heading and the truth's is unknown at all its %d "
+                             "poses (GPS at rest?): left out (align: rigid scores positions only)", name, len(t_in))
+            self._notes.append(f"{name}: truth heading unknown at all its poses, not aligned on the first (left out).")
+            return None
+        r, tr = (rigid_align_2d(est[:, :2], truth[:, :2]) if self.align == "rigid"
+                 else align_first(est, truth, k0 or 0))
         aligned = apply_rigid(r, tr, est)
         err = np.hypot(*(aligned[:, :2] - truth[:, :2]).T)
         rel = (t_in - tt[0]).astype(np.float64)
@@ -237,8 +288,10 @@ class TrajectoryComparison(Component):
         travelled -= travelled[0]
         ate = float(np.sqrt(np.mean(err ** 2)))
         return {"ate_rmse_m": ate, "final_err_m": float(err[-1]), "mean_err_m": float(np.mean(err)),
-                "max_err_m": float(np.max(err)), "poses_outside_truth": outside, "path_m": float(travelled[-1]),
-                "end_to_end_err_m": float(np.hypot(*(_rel(est[0], est[-1]) - _rel(truth[0], truth[-1])))),
+                "max_err_m": float(np.max(err)), "poses_outside_truth": outside,
+                "poses_in_truth_gaps": int(np.count_nonzero(in_gap)), "path_m": float(travelled[-1]),
+                "end_to_end_err_m": None if k0 is None else
+                float(np.hypot(*(_rel(est[k0], est[-1]) - _rel(truth[k0], truth[-1])))),
                 "r": r, "t": tr, "err": err, "dist": travelled, "xy": aligned[:, :2], "t_ns": t_in}
 
     def compute(self) -> dict[str, Any]:
@@ -250,6 +303,10 @@ class TrajectoryComparison(Component):
         self._map_transform: tuple[np.ndarray, np.ndarray] | None = None
         self._baseline_xy: np.ndarray | None = None
         self._notes: list[str] = []
+        for name, (ts, xs) in self.pose_streams.items():
+            if ts and self.samples[name].final is None:  # the whole stream: one final trajectory
+                self.samples[name].add(Trajectory2D(np.asarray(ts, np.int64),
+                                                    np.asarray(xs, np.float64).reshape(-1, 3)))
         for name in self.estimates:
             its = self.samples[name]
             if its.final is None:
@@ -263,7 +320,22 @@ class TrajectoryComparison(Component):
             self._notes.append(f"Fewer than two truth poses ({len(self.truth_t)}): no error computed.")
             self.figures = self._grouped(out)
             return self.figures
-        tt, tx = _sorted_by_time(np.asarray(self.truth_t, np.int64), np.asarray(self.truth_xyt, np.float64))
+        tt, first = np.unique(np.asarray(self.truth_t, np.int64), return_index=True)  # repeated stamps: the first
+        tx = np.asarray(self.truth_xyt, np.float64)[first]
+        tk = np.asarray(self.truth_known, bool)[first]
+        if len(tt) < len(self.truth_t):
+            self.log.info("truth: %d samples repeat an earlier one's time stamp, the first of each kept",
+                          len(self.truth_t) - len(tt))
+        if len(tt) < 2:
+            self.log.warning("fewer than two distinct truth times (%d): no error computed", len(tt))
+            self._notes.append(f"Fewer than two distinct truth times ({len(tt)}): no error computed.")
+            self.figures = self._grouped(out)
+            return self.figures
+        unknown = int(np.count_nonzero(~tk))
+        if unknown:
+            self._notes.append(f"Truth heading unknown at {unknown} of {len(tt)} truth poses (at rest): positions "
+                               "only there.")
+        tk_arg = tk if unknown else None
         dist_truth = distance_travelled_m(tx[:, :2])
         longest = 0.0
         for name in self.estimates:
@@ -271,11 +343,12 @@ class TrajectoryComparison(Component):
             if its.final is None:
                 continue
             _, t_f, x_f = its.final
-            s = self._score(name, t_f, x_f, tt, tx, dist_truth)
+            s = self._score(name, t_f, x_f, tt, tx, dist_truth, tk_arg)
             out[f"{name}_poses_outside_truth"] = int(len(t_f)) if s is None else s["poses_outside_truth"]
             if s is None:  # the note on the poses outside says it
                 continue
-            for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+            for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m",
+                      "poses_in_truth_gaps"):
                 out[f"{name}_{k}"] = s[k]
             if s["path_m"] > 0:
                 out[f"{name}_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
@@ -295,11 +368,12 @@ class TrajectoryComparison(Component):
             out["path_length_m"] = longest
         if self.base_t:
             bt, bx = _sorted_by_time(np.asarray(self.base_t, np.int64), np.asarray(self.base_xyt, np.float64))
-            s = self._score("baseline", bt, bx, tt, tx, dist_truth)
+            s = self._score("baseline", bt, bx, tt, tx, dist_truth, tk_arg)
             out["baseline_poses"] = int(len(bt))
             out["baseline_poses_outside_truth"] = int(len(bt)) if s is None else s["poses_outside_truth"]
             if s is not None:
-                for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m"):
+                for k in ("ate_rmse_m", "final_err_m", "mean_err_m", "max_err_m", "end_to_end_err_m",
+                          "poses_in_truth_gaps"):
                     out[f"baseline_{k}"] = s[k]
                 if s["path_m"] > 0:
                     out["baseline_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
@@ -355,6 +429,8 @@ class TrajectoryComparison(Component):
         outside = [f"{n}: {f[f'{n}_poses_outside_truth']} of {f[f'{n}_poses']} poses outside the truth's time "
                    "span, left out."
                    for n in (*self.estimates, "baseline") if f.get(f"{n}_poses_outside_truth")]
+        outside += [f"{n}: {f[f'{n}_poses_in_truth_gaps']} poses inside gaps of the truth (nothing to interpolate "
+                    "from), left out." for n in (*self.estimates, "baseline") if f.get(f"{n}_poses_in_truth_gaps")]
         path = f" Truth path length {f['path_length_m']:.1f} m." if "path_length_m" in f else ""
         text = [f"# {self.title}", "",
                 f"Alignment: {self.align}.{path} Errors: positions against the truth interpolated at each pose's "
@@ -380,17 +456,24 @@ class TrajectoryComparison(Component):
         radar_map = self.map.get()
         if radar_map is not None and self._map_transform is not None:
             _show_map(ax, radar_map, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
-        ax.plot(*truth_xy.T, color="k", lw=0.8, label="truth", zorder=5)
+        import matplotlib.patheffects as pe  # after _figure: matplotlib is imported lazily
+
+        halo = [pe.Stroke(linewidth=3.2, foreground="w", alpha=0.9), pe.Normal()]  # readable over a dark map
+        ax.plot(*truth_xy.T, color="k", lw=1.0, label="truth", zorder=5, path_effects=halo)
         xys = [truth_xy]
         if self._baseline_xy is not None:
             ax.plot(*self._baseline_xy.T, "--", color="0.55", lw=1.0, zorder=2,
                     label=f"{self.baseline_title} (ATE {f['baseline_ate_rmse_m']:.2f} m)")
             xys.append(self._baseline_xy)
         for n, c in self.curves.items():
-            ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4,
-                    label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.3f} m, final {f[f'{n}_final_err_m']:.3f} m)")
+            pct = f.get(f"{n}_ate_pct")
+            ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4, path_effects=halo,
+                    label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.3f} m" + (f" = {pct:.2f} %" if pct else "")
+                    + f", final {f[f'{n}_final_err_m']:.3f} m)")
+            ax.plot(*c["xy"][-1], "x", color=colour[n], ms=8, mew=2.0, zorder=6)
             xys.append(c["xy"])
         ax.plot(*truth_xy[0], "o", color="k", mfc="w", ms=7, mew=1.5, zorder=6, label="start")
+        ax.plot(*truth_xy[-1], "s", color="k", mfc="w", ms=7, mew=1.5, zorder=6, label="end (x: each estimate's)")
         xy = np.vstack(xys)
         lo, hi = xy.min(axis=0), xy.max(axis=0)
         mid, half = 0.5 * (lo + hi), 0.5 * float(np.max(hi - lo)) * 1.08 + 2.0

@@ -9,8 +9,8 @@ import numpy as np
 from impala_flow.component import Component, Input, Param
 from impala_flow.msgs import Grid, Pose2D, Twist2D
 
-from .metrics import TrajectoryMetrics, TwistErrors, trajectory_metrics, twist_errors
-from .report import find_gaps, format_metrics, write_report
+from .metrics import SEGMENT_LENGTHS_M, TrajectoryMetrics, TwistErrors, trajectory_metrics, twist_errors
+from .report import find_gaps, format_metrics, gap_summary, write_report
 
 __all__ = ["TrajectoryEvaluator"]
 
@@ -22,6 +22,17 @@ def _arrays(samples: list[tuple[int, Pose2D]]) -> tuple[np.ndarray, np.ndarray]:
     return t[order], xyt[order]
 
 
+def _truth_arrays(samples: list[tuple[int, Pose2D]]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, int]:
+    """Truth times (sorted, each once: the first sample of a repeated stamp kept), poses, heading
+    known per sample (None: everywhere) and how many repeated stamps were merged."""
+    t = np.array([s[0] for s in samples], np.int64)
+    xyt = np.array([[p.x_m, p.y_m, p.theta_rad] for _, p in samples], float).reshape(-1, 3)
+    known = np.array([p.heading_known for _, p in samples], bool)
+    t, first = np.unique(t, return_index=True)  # np.unique's index is the first occurrence
+    known = known[first]
+    return t, xyt[first], None if known.all() else known, len(samples) - len(t)
+
+
 class TrajectoryEvaluator(Component):
     """Matches the estimate to the truth by timestamp (truth interpolated), aligns it (rigid
     least squares or first pose), and at stop() writes ``report``: metrics.json, error vs
@@ -30,7 +41,17 @@ class TrajectoryEvaluator(Component):
     the truth's motion between the same times) and their figure, pair_errors.png. Data that
     never arrived is stated, never averaged away: time ranges of a stream with no sample for
     more than three median periods (a damaged chunk of the recording, a dropped sensor) go
-    to metrics.json (``gaps``), the printed metrics and the error figure, with a warning."""
+    to metrics.json (``gaps``), the printed metrics and the error figure, with a one-line
+    warning (per stream: how many, in all, the longest); repeated stamps are one sample.
+
+    Truth from a GPS: a truth pose whose heading is unknown (``Pose2D.heading_known``: at
+    rest) is scored on its position only. ATE (rigid) needs positions only; ``align: first``
+    aligns on the first matched pose whose truth heading is known (refused, with a one-line
+    warning, when there is none); heading RMSE, pair errors, final rotation, yaw-rate errors
+    and relative errors use only the poses where it is known, and say how many were left out.
+    Relative drift: KITTI-style over segments of 100, 200, ..., 800 m along the true path
+    (``rel_err_pct`` their mean, ``rel_err_<L>m_pct`` per length), each starting at a pose
+    whose truth heading is known (its frame); ``rel_err_per_100m_pct`` over ``segment_m``."""
 
     estimate = Input(Pose2D, maxsize=1 << 20, doc="estimated poses (each one evaluated)")
     truth = Input(Pose2D, maxsize=1 << 20, doc="reference poses (RTK-GPS, simulator truth)")
@@ -71,24 +92,37 @@ class TrajectoryEvaluator(Component):
         if len(est) < 2 or len(truth) < 2:
             self.figures = {"error": f"not enough poses (estimate {len(est)}, truth {len(truth)})"}
             return self.figures
-        tt, txyt = _arrays(truth)
+        tt, txyt, known, repeated = _truth_arrays(truth)
+        if len(tt) < 2:
+            self.figures = {"error": f"not enough truth poses ({len(tt)} distinct times)"}
+            return self.figures
+        if repeated:
+            self.log.info("truth: %d samples repeat an earlier one's time stamp, the first of each kept", repeated)
         gaps = {k: g for k in ("estimate", "truth", "baseline")
                 if (g := find_gaps(np.array([s[0] for s in self.samples[k]], np.int64)))}
-        self.metrics = trajectory_metrics(*_arrays(est), tt, txyt, self.align, self.segment_m)
+        try:
+            self.metrics = trajectory_metrics(*_arrays(est), tt, txyt, self.align, self.segment_m, known)
+        except ValueError as e:
+            self.figures = {"error": str(e)}
+            return self.figures
         self.figures = self.metrics.figures()
         if gaps:
             self.figures["gaps"] = gaps
             self.figures["gap_total_s"] = round(sum(b - a for g in gaps.values() for a, b in g), 6)
         if len(base) >= 2:
-            self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m)
-            self.figures.update(self.baseline_metrics.figures("baseline_"))
+            try:
+                self.baseline_metrics = trajectory_metrics(*_arrays(base), tt, txyt, self.align, self.segment_m,
+                                                           known)
+                self.figures.update(self.baseline_metrics.figures("baseline_"))
+            except ValueError as e:
+                self.figures["baseline_error"] = str(e)
         tw = self.samples["twist"]
         if tw:
             t = np.array([s[0] for s in tw], np.int64)
             order = np.argsort(t, kind="stable")
             v = np.array([s[1].speed_mps for s in tw], float)[order]
             w = np.array([s[1].yaw_rate_radps for s in tw], float)[order]
-            self.twist_errors = twist_errors(t[order], v, w, tt, txyt, self.twist_window_s)
+            self.twist_errors = twist_errors(t[order], v, w, tt, txyt, self.twist_window_s, known)
             if len(self.twist_errors.t_ns):
                 self.figures.update(self.twist_errors.figures())
         if self.pairs:
@@ -104,15 +138,18 @@ class TrajectoryEvaluator(Component):
             self.log.warning("no report: %s", figures.get("error"))
             return
         self.log.info("trajectory metrics\n%s", format_metrics(figures))
+        if figures.get("baseline_error"):
+            self.log.warning("baseline not scored: %s", figures["baseline_error"])
         if figures.get("gaps"):
-            self.log.warning("data missing, metrics cover only what was received: %s", figures["gaps"])
+            self.log.warning("data missing, metrics cover only what was received: %s", gap_summary(figures["gaps"]))
         if self.report:
             write_report(Path(self.report), figures, m, self.baseline_metrics, self.map.get(),
                          (m.rotation, m.translation_m), self.title, self.map_scale, self.baseline_title,
                          pairs_figure=self.pairs, twist=self.twist_errors)
 
     def summary(self) -> dict:
-        keys = ("ate_rmse_m", "drift_pct", "rel_err_pct", "baseline_ate_rmse_m", "baseline_drift_pct",
+        keys = ("ate_rmse_m", "ate_pct", "drift_pct", "rel_err_pct", "rel_err_per_100m_pct",
+                *(f"rel_err_{L:g}m_pct" for L in SEGMENT_LENGTHS_M), "baseline_ate_rmse_m", "baseline_drift_pct",
                 "pair_trans_err_mean_m", "pair_rot_err_mean_deg", "gap_total_s", "speed_err_mean_mps",
                 "speed_err_std_mps", "yaw_rate_err_mean_dps", "yaw_rate_err_std_dps", "final_error_x_m",
                 "final_error_y_m", "final_rot_err_rad")

@@ -25,9 +25,9 @@ import numpy as np
 
 from impala_flow.msgs import Grid
 
-from .metrics import TrajectoryMetrics, TwistErrors
+from .metrics import TrajectoryMetrics, TwistErrors, gap_spans_ns
 
-__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps"]
+__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps", "gap_summary"]
 
 METRICS_FILE = "metrics.json"
 _EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
@@ -35,20 +35,26 @@ _EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
 
 def find_gaps(t_ns: np.ndarray, factor: float = 3.0) -> list[list[float]]:
     """Time ranges with no sample: ``[start_s, end_s]`` (mission seconds) between consecutive
-    samples more than ``factor`` median periods apart (lost chunks, a dropped sensor)."""
-    t = np.sort(np.asarray(t_ns, np.int64))
-    if len(t) < 3:
-        return []
-    dt = np.diff(t)
-    period = float(np.median(dt))
-    at = np.nonzero(dt > factor * max(period, 1.0))[0]
-    return [[round(t[i] * 1e-9, 6), round(t[i + 1] * 1e-9, 6)] for i in at]
+    samples more than ``factor`` periods apart (lost chunks, a dropped sensor); see
+    :func:`~impala_eval.metrics.gap_spans_ns` for the period (repeated stamps count once)."""
+    return [[round(float(a) * 1e-9, 6), round(float(b) * 1e-9, 6)] for a, b in gap_spans_ns(t_ns, factor).tolist()]
+
+
+def gap_summary(gaps: dict[str, list[list[float]]]) -> str:
+    """One line: per stream the number of gaps, their total and the longest (where)."""
+    parts = []
+    for stream, ranges in gaps.items():
+        if not ranges:
+            continue
+        spans = [b - a for a, b in ranges]
+        k = int(np.argmax(spans))
+        parts.append(f"{stream} {len(ranges)} gap{'s' if len(ranges) > 1 else ''} ({sum(spans):.2f} s in all, "
+                     f"longest {spans[k]:.2f} s at t={ranges[k][0]:.3f} s)")
+    return "; ".join(parts)
 
 
 def _gap_text(figures: dict[str, Any]) -> str:
-    gaps = figures.get("gaps") or {}
-    return "; ".join(f"{stream} t=" + ", ".join(f"{a:.3f}..{b:.3f} s" for a, b in ranges)
-                     for stream, ranges in gaps.items() if ranges)
+    return gap_summary(figures.get("gaps") or {})
 
 
 def _figure(w: float, h: float):  # type: ignore[no-untyped-def]
@@ -93,6 +99,11 @@ def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = 
     ax.figure.colorbar(im, ax=ax, shrink=0.8, label=label)
 
 
+def _ate_label(m: TrajectoryMetrics) -> str:
+    pct = m.ate_pct
+    return f"ATE {m.ate_rmse_m:.2f} m" + (f" = {pct:.2f} % of {m.path_length_m:.0f} m" if pct is not None else "")
+
+
 def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMetrics,
                  baseline: TrajectoryMetrics | None = None, radar_map: Grid | None = None,
                  transform: tuple[np.ndarray, np.ndarray] | None = None, title: str = "R-SLAM",
@@ -114,7 +125,8 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
             ax.plot(baseline.distance_m, baseline.error_m, color=_BASE, lw=1.2,
                     label=f"{baseline_title} (ATE RMSE {baseline.ate_rmse_m:.2f} m)")
         ax.plot(est.distance_m, est.error_m, color=_EST, lw=1.4,
-                label=f"{title} (ATE RMSE {est.ate_rmse_m:.3f} m, final drift {est.drift_pct:.2f} %)")
+                label=f"{title} (ATE RMSE {est.ate_rmse_m:.3f} m" + (
+                    f", final drift {est.drift_pct:.2f} %)" if est.drift_pct is not None else ")"))
         ax.set(ylabel="position error (m)")
         ax.set_xlim(0, max(est.distance_m[-1], 1e-3))
         ax.set_ylim(bottom=0)
@@ -135,9 +147,13 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
     if baseline is not None:
         ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
-                ls="--", label=baseline_title)
-    ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2, label=title)
-    ax.plot(*est.truth_xyt[0, :2], "o", color="k", ms=5, label="start")
+                ls="--", label=f"{baseline_title} ({_ate_label(baseline)})")
+    ax.plot(est.est_aligned_xyt[:, 0], est.est_aligned_xyt[:, 1], color=_EST, lw=1.2,
+            label=f"{title} ({_ate_label(est)})")
+    ax.plot(*est.est_aligned_xyt[-1, :2], "x", color=_EST, ms=8, mew=2.0, zorder=6)
+    ax.plot(*est.truth_xyt[0, :2], "o", color="k", mfc="w", ms=7, mew=1.5, label="start", zorder=6)
+    ax.plot(*est.truth_xyt[-1, :2], "s", color="k", mfc="w", ms=7, mew=1.5, label="end (x: the estimate's)",
+            zorder=6)
     xy = np.vstack([est.truth_xyt[:, :2], est.est_aligned_xyt[:, :2]])
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     pad = 0.15 * float(max(hi - lo)) + 5.0
@@ -174,14 +190,18 @@ def _twist_figure(path: Path, tw: TwistErrors, title: str) -> None:
     (a, b), (c, d) = fig.subplots(2, 2, sharex=True)
     a.plot(t, tw.truth_speed_mps, color=_TRUTH, lw=1.2)
     a.set(ylabel="true speed (m/s)", title="speed")
-    b.plot(t, tw.truth_yaw_rate_dps, color=_TRUTH, lw=1.2)
+    ty = t[tw.yaw_known]
+    b.plot(ty, tw.truth_yaw_rate_dps, color=_TRUTH, lw=1.2)
     b.set(ylabel="true yaw rate (deg/s)", title="yaw rate")
     c.plot(t, tw.speed_err_mps, ".", color=_EST, ms=3)
     c.set(xlabel="time (s)", ylabel="error (m/s)",
           title=f"mean {f['speed_err_mean_mps']:+.3f}, std {f['speed_err_std_mps']:.3f} m/s")
-    d.plot(t, tw.yaw_rate_err_dps, ".", color=_EST, ms=3)
+    d.plot(ty, tw.yaw_rate_err_dps, ".", color=_EST, ms=3)
+    skipped = f", {f['twist_heading_unknown']} where the truth heading is unknown left out" \
+        if f["twist_heading_unknown"] else ""
     d.set(xlabel="time (s)", ylabel="error (deg/s)",
-          title=f"mean {f['yaw_rate_err_mean_dps']:+.3f}, std {f['yaw_rate_err_std_dps']:.3f} deg/s")
+          title=(f"mean {f['yaw_rate_err_mean_dps']:+.3f}, std {f['yaw_rate_err_std_dps']:.3f} deg/s"
+                 if len(ty) else "no yaw rate scored (truth heading unknown)") + skipped)
     for ax in (a, b, c, d):
         ax.grid(alpha=0.3)
     for ax in (c, d):
@@ -221,10 +241,17 @@ def _pairs_figure(path: Path, est: TrajectoryMetrics, baseline: TrajectoryMetric
     fig.savefig(path)
 
 
+def _cell(v: Any) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.3f}"
+
+
 def format_metrics(figures: dict[str, Any]) -> str:
-    """Human-readable lines: estimate and baseline side by side."""
-    rows = [("ATE RMSE", "ate_rmse_m", "m"), ("ATE mean", "ate_mean_m", "m"), ("ATE max", "ate_max_m", "m"),
+    """Human-readable lines: estimate and baseline side by side; the relative drift per
+    segment length, what the truth heading left unscored and the data missing, one line each."""
+    rows = [("ATE RMSE", "ate_rmse_m", "m"), ("ATE RMSE / path", "ate_pct", "% of path"),
+            ("ATE mean", "ate_mean_m", "m"), ("ATE max", "ate_max_m", "m"),
             ("heading RMSE", "heading_rmse_deg", "deg"), ("rel. error / 100 m", "rel_err_per_100m_pct", "%"),
+            ("drift 100-800 m", "rel_err_pct", "% (KITTI, mean over segments)"),
             ("final error", "final_error_m", "m"), ("final drift", "drift_pct", "% of path"),
             ("path length", "path_length_m", "m"), ("pair error mean", "pair_trans_err_mean_m", "m"),
             ("pair error max", "pair_trans_err_max_m", "m"), ("pair rotation mean", "pair_rot_err_mean_deg", "deg"),
@@ -234,9 +261,23 @@ def format_metrics(figures: dict[str, Any]) -> str:
     lines = [head]
     for label, key, unit in rows:
         vals = [figures.get(key)] + ([figures.get("baseline_" + key)] if has_base else [])
-        cells = "".join(f"{'n/a' if v is None or (isinstance(v, float) and math.isnan(v)) else f'{v:.3f}':>12s}"
-                        for v in vals)
-        lines.append(f"{label:22s}{cells}  {unit}")
+        lines.append(f"{label:22s}{''.join(f'{_cell(v):>12s}' for v in vals)}  {unit}")
+    by_length = sorted((float(k[8:-5]), k) for k in figures if k.startswith("rel_err_") and k.endswith("m_pct")
+                       and k[8:-5].replace(".", "", 1).isdigit())
+    if by_length:
+        lines.append("drift per segment length: " + ", ".join(
+            f"{L:g} m {figures[k]:.2f} % (n={figures.get(k[:-4] + '_segments', '?')})" for L, k in by_length))
+    elif figures.get("rel_err_segments") == 0:
+        lines.append("drift per segment length: no segment (path shorter than 100 m or no known truth heading)")
+    unknown = figures.get("n_heading_unknown") or 0
+    if unknown:
+        skipped = figures.get("n_pairs_heading_unknown") or 0
+        lines.append(f"truth heading unknown at {unknown} of {figures.get('n_poses')} poses: heading, rotation, "
+                     f"relative errors there left out ({skipped} pairs); ATE over all (positions)"
+                     + (f"; first-pose alignment on pose {figures['first_aligned_pose']}"
+                        if figures.get("first_aligned_pose") else ""))
+    if figures.get("n_poses_in_truth_gaps"):
+        lines.append(f"{figures['n_poses_in_truth_gaps']} estimated poses inside gaps of the truth: left out")
     if _gap_text(figures):
         lines.append(f"DATA MISSING (no sample): {_gap_text(figures)}; the metrics cover only what was received")
     return "\n".join(lines)

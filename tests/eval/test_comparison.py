@@ -180,6 +180,7 @@ def test_iterations_beyond_the_row_budget_are_thinned_evenly(tmp_path, monkeypat
     ({"estimates": ["a b"]}, "parameter 'estimates': 'a b'"),
     ({"estimates": ["ekf", "ekf"]}, "parameter 'estimates': a name is given twice"),
     ({"estimates": ["a", "b"], "titles": ["only one"]}, "parameter 'titles': 1 titles for 2 estimates"),
+    ({"estimates": ["a", "b"], "poses": ["c"]}, r"parameter 'poses': \['c'\] not in 'estimates'"),
 ])
 def test_bad_parameters_are_named(params, words):
     with pytest.raises(ValueError, match=words):
