@@ -15,13 +15,14 @@ def impala_flow_register(registry: Any) -> None:
     registry.add_component(OxfordScans)
     registry.add_component(BoreasScans)
     registry.add_component(RadiateScans)
-    from .frontend import EgoVelocity, FuzzyPairer, PanoramicBuilder, SpeckleFilter
+    from .frontend import EgoVelocity, FuzzyPairer, PanoramicBuilder, PeakExtractor, SpeckleFilter
     from .frontend.report import FrontendReport
 
     registry.add_component(FuzzyPairer)
     registry.add_component(EgoVelocity)
     registry.add_component(PanoramicBuilder)
     registry.add_component(SpeckleFilter)
+    registry.add_component(PeakExtractor)
     registry.add_component(FrontendReport)
 
 

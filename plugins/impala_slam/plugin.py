@@ -14,6 +14,7 @@ from impala_flow.plugins import hookimpl
 def impala_flow_register(registry: Any) -> None:
     from .dead_reckoning import DeadReckoning
     from .ekf_slam import EkfSlam
+    from .kissicp import KissIcp
     from .odometry import DistortionOdometry
     from .posegraph import PoseGraph
     from .registration import FmtRegistration
@@ -25,3 +26,4 @@ def impala_flow_register(registry: Any) -> None:
     registry.add_component(FmtRegistration)
     registry.add_component(EkfSlam)
     registry.add_component(PoseGraph)
+    registry.add_component(KissIcp)
