@@ -261,9 +261,8 @@ class TrajectoryComparison(Component):
         a known truth heading). ``tk``: truth heading known per truth pose (None: all)."""
         truth, inside = interpolate_truth(t_ns, tt, tx)
         in_gap = inside & in_spans(t_ns, gap_spans_ns(tt))
-        if in_gap.any():
-            self.log.warning("%s: %d of %d poses inside gaps of the truth (no truth to interpolate), left out",
-                             name, int(np.count_nonzero(in_gap)), len(t_ns))
+        if in_gap.any():  # said in one line at the end of compute()
+            self._in_gaps.append(f"{name} {int(np.count_nonzero(in_gap))} of {len(t_ns)}")
         known = heading_known_at(t_ns, tt, tk)[inside & ~in_gap]
         outside = int(np.count_nonzero(~inside))
         if outside:  # one or two at the ends are routine (a truth that starts or stops a little late)
@@ -303,6 +302,7 @@ class TrajectoryComparison(Component):
         self._map_transform: tuple[np.ndarray, np.ndarray] | None = None
         self._baseline_xy: np.ndarray | None = None
         self._notes: list[str] = []
+        self._in_gaps: list[str] = []
         for name, (ts, xs) in self.pose_streams.items():
             if ts and self.samples[name].final is None:  # the whole stream: one final trajectory
                 self.samples[name].add(Trajectory2D(np.asarray(ts, np.int64),
@@ -379,6 +379,9 @@ class TrajectoryComparison(Component):
                     out["baseline_ate_pct"] = 100.0 * s["ate_rmse_m"] / s["path_m"]
                 self._baseline_xy = s["xy"]
         self._truth = (tt, tx)
+        if self._in_gaps:
+            self.log.warning("poses inside gaps of the truth (no truth to interpolate from), left out: %s",
+                             ", ".join(self._in_gaps))
         self.figures = self._grouped(out)
         return self.figures
 
@@ -451,7 +454,16 @@ class TrajectoryComparison(Component):
         sel = (tt > t0) & (tt < t1)
         ends, _ = interpolate_truth(np.array([t0, t1], np.int64), tt, tx)
         truth_xy = np.vstack([ends[:1, :2], tx[sel, :2], ends[1:, :2]])
-        fig = _figure(7.5, 6.8)
+        xys = [truth_xy, *(c["xy"] for c in self.curves.values())]
+        if self._baseline_xy is not None:
+            xys.append(self._baseline_xy)
+        xy = np.vstack(xys)
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        # equal axes around the paths, each axis its own span: the figure takes the paths' shape
+        mid, half = 0.5 * (lo + hi), 0.54 * (hi - lo) + 2.0 + 0.04 * float(np.max(hi - lo))
+        half = np.maximum(half, 0.3 * float(np.max(half)))  # a straight path keeps some room either side
+        rows = (len(self.curves) + (self._baseline_xy is not None) + 3) // 2  # the legend, below the plot
+        fig = _figure(8.0, float(np.clip(7.0 * half[1] / half[0] + 1.0, 3.5, 8.5)) + 0.22 * rows)
         ax = fig.add_subplot()
         radar_map = self.map.get()
         if radar_map is not None and self._map_transform is not None:
@@ -460,29 +472,23 @@ class TrajectoryComparison(Component):
 
         halo = [pe.Stroke(linewidth=3.2, foreground="w", alpha=0.9), pe.Normal()]  # readable over a dark map
         ax.plot(*truth_xy.T, color="k", lw=1.0, label="truth", zorder=5, path_effects=halo)
-        xys = [truth_xy]
         if self._baseline_xy is not None:
             ax.plot(*self._baseline_xy.T, "--", color="0.55", lw=1.0, zorder=2,
                     label=f"{self.baseline_title} (ATE {f['baseline_ate_rmse_m']:.2f} m)")
-            xys.append(self._baseline_xy)
         for n, c in self.curves.items():
             pct = f.get(f"{n}_ate_pct")
             ax.plot(*c["xy"].T, color=colour[n], lw=1.3, zorder=4, path_effects=halo,
                     label=f"{titles[n]} (ATE {f[f'{n}_ate_rmse_m']:.3f} m" + (f" = {pct:.2f} %" if pct else "")
                     + f", final {f[f'{n}_final_err_m']:.3f} m)")
             ax.plot(*c["xy"][-1], "x", color=colour[n], ms=8, mew=2.0, zorder=6)
-            xys.append(c["xy"])
         ax.plot(*truth_xy[0], "o", color="k", mfc="w", ms=7, mew=1.5, zorder=6, label="start")
         ax.plot(*truth_xy[-1], "s", color="k", mfc="w", ms=7, mew=1.5, zorder=6, label="end (x: each estimate's)")
-        xy = np.vstack(xys)
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        mid, half = 0.5 * (lo + hi), 0.5 * float(np.max(hi - lo)) * 1.08 + 2.0
-        ax.set_xlim(mid[0] - half, mid[0] + half)
-        ax.set_ylim(mid[1] - half, mid[1] + half)
+        ax.set_xlim(mid[0] - half[0], mid[0] + half[0])
+        ax.set_ylim(mid[1] - half[1], mid[1] + half[1])
         ax.set_aspect("equal")
         ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{self.title}: final trajectories ({self.align} alignment)")
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", framealpha=0.85, fontsize=8)
+        fig.legend(loc="outside lower center", ncol=2, frameon=False, fontsize=8)  # never over the paths
         fig.savefig(path)
 
     def _convergence_figure(self, path: Path) -> None:

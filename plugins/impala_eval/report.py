@@ -129,15 +129,17 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
                     f", final drift {est.drift_pct:.2f} %)" if est.drift_pct is not None else ")"))
         ax.set(ylabel="position error (m)")
         ax.set_xlim(0, max(est.distance_m[-1], 1e-3))
-        ax.set_ylim(bottom=0)
+        ax.set_ylim(0, 1.3 * max(max((float(np.max(ln.get_ydata())) for ln in ax.get_lines()), default=0.0), 1e-6))
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", frameon=False)
+        ax.legend(loc="upper left", frameon=False)  # above the curves: 30 % headroom
     axes[0].set_title(f"Position error vs truth after {est.align} alignment"
                       + (f" ({title} alone, then beside the baseline)" if apart else ""))
     axes[-1].set_xlabel("distance travelled (m)")
     if _gap_text(figures):  # the metrics cover only what was received: say what was not
-        axes[0].text(0.99, 0.97, "DATA MISSING: " + _gap_text(figures), transform=axes[0].transAxes,
-                     ha="right", va="top", color="#d62728", fontsize=8, wrap=True)
+        import textwrap  # below the plot (not over the curves and the legend), wrapped to its width
+
+        fig.supxlabel("\n".join(textwrap.wrap("DATA MISSING: " + _gap_text(figures), 130)), color="#d62728",
+                      fontsize=8)
     fig.savefig(folder / "error_vs_distance.png")
 
     fig = _figure(7.5, 7.0)
