@@ -211,8 +211,11 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
     truth = ds.truth(report)
     if truth is not None and len(truth[0]):
         t, xyt = truth[0], truth[1]
-        if np.any(np.diff(t) <= 0):
-            raise ValueError(f"{ds.name}: truth times not strictly increasing")  # a reader bug, not bad input
+        bad = np.flatnonzero(np.diff(t) <= 0)
+        if bad.size:
+            k = int(bad[0]) + 1
+            raise DatasetError(f"{getattr(ds, 'folder', ds.name)}: truth pose {k} at {int(t[k])} ns is not after "
+                               f"the one before ({int(t[k - 1])} ns)")
         report.truth_poses = len(t)
         if len(truth) > 2:
             streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, c, frame="odom"))
