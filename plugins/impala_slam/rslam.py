@@ -48,7 +48,7 @@ from impala_flow.component import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, Twist2D
 
 from .matching import MatchParams, match_to_map
-from .se2 import between, compose
+from .se2 import between, compose, repeat
 from .tilemap import TileMap, alpha_weight, warp_grid_to_map
 
 __all__ = ["RSlamConfig", "RSlamCore", "RSlam"]
@@ -97,7 +97,18 @@ class RSlamCore:
         t_pp, pp = self.poses[-2]
         d = between(pp, prev)
         w = (t_ns - t_prev) / max(1, t_prev - t_pp)  # constant velocity
-        return compose(prev, (w * d[0], w * d[1], w * d[2]))
+        return compose(prev, repeat(d, w))  # constant velocity: the last increment's arc continued
+
+    def gap_ratio(self, t_ns: int) -> float:
+        """How many ordinary intervals (the median of the last ones) separate ``t_ns`` from
+        the last estimate; 1 unless it is over 1.5 (turns missing from the log: the
+        matching then searches that many times wider, see :func:`match_to_map`)."""
+        if len(self.poses) < 3:
+            return 1.0
+        ts = np.array([t for t, _ in self.poses[-11:]], np.int64)
+        usual = float(np.median(np.diff(ts)))
+        r = (t_ns - int(ts[-1])) / usual if usual > 0 else 1.0
+        return r if r > 1.5 else 1.0
 
     def velocity(self) -> tuple[float, float]:
         """(forward speed m/s, yaw rate rad/s) between the last two estimates (0 before)."""
@@ -158,7 +169,7 @@ class RSlamCore:
         else:
             pred = self.last_prediction = self.predict(t_ns, odom)
             t0 = time.perf_counter()
-            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha)
+            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns))
             self.match_s += time.perf_counter() - t0
             ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
             if ok:
