@@ -33,6 +33,13 @@ What the seed leaves free, and the values chosen (measured on the simulated Beyn
   (:func:`~impala_slam.tilemap.alpha_weight`; IMPALA: 4 deg, 0.75 m, 3-100 m).
 - **Search**: +-2 m around the odometry prediction, rotations +-1 deg by 0.25 deg (the gyro
   predicts the heading to about 0.1 deg per turn), matching disk 60 m, coarse level 0.4 m.
+- **Missing turns** (real logs: RADIATE's radar log has gaps of up to 1.6 s): without
+  odometry the constant-velocity prediction continues the last increment along its arc
+  (:func:`~impala_slam.se2.repeat`), and a prediction spanning more than 1.5 ordinary
+  intervals first searches that many times the rotation span (:func:`match_to_map`'s
+  ``widen``). Measured on RADIATE's Edinburgh head with five gaps of 1.6-1.75 s cut into
+  it while driving (a 25 deg bend among them): ATE 3.5 m -> 1.1 m of 332 m (1.1 m without
+  the gaps); the straight-line extrapolation put the pose 4 m off the road in the bend.
 """
 
 from __future__ import annotations
