@@ -38,7 +38,7 @@ What the seed leaves free, and the values chosen (measured on the simulated Beyn
   (:func:`~impala_slam.se2.repeat`), and a prediction spanning more than 1.5 ordinary
   intervals first searches that many times the rotation span (:func:`match_to_map`'s
   ``widen``). Measured on RADIATE's Edinburgh head with five gaps of 1.6-1.75 s cut into
-  it while driving (a 25 deg bend among them): ATE 3.5 m -> 1.1 m of 332 m (1.1 m without
+  it while driving (a 25 deg bend among them): ATE 3.25 m -> 1.07 m of 332 m (1.06 m without
   the gaps); the straight-line extrapolation put the pose 4 m off the road in the bend.
 """
 
