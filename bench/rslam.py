@@ -39,7 +39,7 @@ GRAPH_SIM = """
 name: rslam-bench
 clock: {mode: replay, speed: max}
 components:
-  mission: {type: radar.Simulator, params: {scenario: beynes, duration_s: %(duration)s}}
+  mission: {type: radar.Simulator, params: {scenario: beynes, duration_s: %(duration)s, seed: %(seed)s}}
   panoramic: {type: radar.PanoramicBuilder, params: {cell_m: 0.2}}
   speckle: {type: radar.SpeckleFilter, params: {looks: 2}}
   slam: {type: slam.RSlam, params: {map_period_s: 1.0e6}}
@@ -105,7 +105,7 @@ def _timed(comp: Component, acc: dict[str, float]) -> None:
     comp.process = process  # type: ignore[method-assign]
 
 
-def run_mission(turns: int, synthetic: bool, report: str) -> dict:
+def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dict:
     from importlib.metadata import entry_points
 
     from impala_flow.testing import plugin_of
@@ -119,7 +119,7 @@ def run_mission(turns: int, synthetic: bool, report: str) -> dict:
     if not synthetic and "radar.Simulator" not in session.registry.components:
         synthetic = True
     text = (GRAPH_SYNTH if synthetic else GRAPH_SIM) % {"turns": turns, "duration": float(turns) + 0.5,
-                                                        "report": report}
+                                                        "report": report, "seed": seed}
     net = session.build(session.load_text(text))
     acc: dict[str, float] = {}
     for c in net.components.values():
@@ -223,8 +223,9 @@ def main() -> None:
     ap.add_argument("--synthetic", action="store_true", help="point-scatterer world instead of radar.Simulator")
     ap.add_argument("--report", default="out/bench-rslam", help="evaluator report folder")
     ap.add_argument("--no-oxford", action="store_true")
+    ap.add_argument("--seed", type=int, default=-1, help="seed of the simulated world and noise (-1: the scenario's)")
     args = ap.parse_args()
-    out = run_mission(args.turns, args.synthetic, args.report)
+    out = run_mission(args.turns, args.synthetic, args.report, args.seed)
     for k, v in out.items():
         print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
     if not args.no_oxford:

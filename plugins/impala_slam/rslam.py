@@ -33,6 +33,13 @@ What the seed leaves free, and the values chosen (measured on the simulated Beyn
   (:func:`~impala_slam.tilemap.alpha_weight`; IMPALA: 4 deg, 0.75 m, 3-100 m).
 - **Search**: +-2 m around the odometry prediction, rotations +-1 deg by 0.25 deg (the gyro
   predicts the heading to about 0.1 deg per turn), matching disk 60 m, coarse level 0.4 m.
+- **Missing turns** (real logs: RADIATE's radar log has gaps of up to 1.6 s): without
+  odometry the constant-velocity prediction continues the last increment along its arc
+  (:func:`~impala_slam.se2.repeat`), and a prediction spanning more than 1.5 ordinary
+  intervals first searches that many times the rotation span (:func:`match_to_map`'s
+  ``widen``). Measured on RADIATE's Edinburgh head with five gaps of 1.6-1.75 s cut into
+  it while driving (a 25 deg bend among them): ATE 3.25 m -> 1.07 m of 332 m (1.06 m without
+  the gaps); the straight-line extrapolation put the pose 4 m off the road in the bend.
 """
 
 from __future__ import annotations
@@ -48,7 +55,7 @@ from impala_flow.component import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, Twist2D
 
 from .matching import MatchParams, match_to_map
-from .se2 import between, compose
+from .se2 import between, compose, repeat
 from .tilemap import TileMap, alpha_weight, warp_grid_to_map
 
 __all__ = ["RSlamConfig", "RSlamCore", "RSlam"]
@@ -97,7 +104,18 @@ class RSlamCore:
         t_pp, pp = self.poses[-2]
         d = between(pp, prev)
         w = (t_ns - t_prev) / max(1, t_prev - t_pp)  # constant velocity
-        return compose(prev, (w * d[0], w * d[1], w * d[2]))
+        return compose(prev, repeat(d, w))  # constant velocity: the last increment's arc continued
+
+    def gap_ratio(self, t_ns: int) -> float:
+        """How many ordinary intervals (the median of the last ones) separate ``t_ns`` from
+        the last estimate; 1 unless it is over 1.5 (turns missing from the log: the
+        matching then searches that many times wider, see :func:`match_to_map`)."""
+        if len(self.poses) < 3:
+            return 1.0
+        ts = np.array([t for t, _ in self.poses[-11:]], np.int64)
+        usual = float(np.median(np.diff(ts)))
+        r = (t_ns - int(ts[-1])) / usual if usual > 0 else 1.0
+        return r if r > 1.5 else 1.0
 
     def velocity(self) -> tuple[float, float]:
         """(forward speed m/s, yaw rate rad/s) between the last two estimates (0 before)."""
@@ -158,7 +176,7 @@ class RSlamCore:
         else:
             pred = self.last_prediction = self.predict(t_ns, odom)
             t0 = time.perf_counter()
-            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha)
+            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns))
             self.match_s += time.perf_counter() - t0
             ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
             if ok:
