@@ -167,3 +167,24 @@ def test_without_kiss_icp_one_line_names_the_component_and_the_extra(monkeypatch
 def test_the_same_beams_give_bit_identical_poses():
     a, b = run(6, rest_s=-10.0), run(6, rest_s=-10.0)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def test_graph_on_the_oxford_sample(tmp_path):
+    """graphs/kiss_icp_navtech.yaml as a user runs it, on the real Oxford scans against their
+    ground truth (the dataset's radar odometry, centimetre-level): the path within 1 %."""
+    import json
+    from pathlib import Path
+
+    from impala_flow.cli import main
+
+    from ..datasets import oxford_sample_or_skip
+
+    folder = oxford_sample_or_skip()
+    mission, out = tmp_path / "oxford.mcap", tmp_path / "out"
+    assert main(["import", "oxford", str(folder), "-o", str(mission), "--no-progress"]) == 0
+    graph = Path(__file__).resolve().parents[2] / "graphs" / "kiss_icp_navtech.yaml"
+    assert main(["run", str(graph), "--var", f"mission={mission}", "--var", f"out={out}", "--no-progress"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["n_poses"] >= 10 and (out / "kiss_icp_navtech.mcap").is_file()
+    assert m["ate_rmse_m"] < 0.01 * m["path_length_m"]
+    assert m["pair_trans_err_mean_m"] < 0.1 and m["pair_rot_err_mean_deg"] < 0.5
