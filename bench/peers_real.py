@@ -21,7 +21,8 @@ Missions: the RADIATE Edinburgh head (``--radiate``: an imported mission, by def
 and the Oxford sample (imported here from IMPALA_FLOW_TEST_DATA/oxford-radar-robotcar-sample: 11
 turns, about 20 m, truth from its radar odometry). The last line is one JSON object:
 ``<mission>_<method>_ate_m``, ``_ate_pct``, ``_ms_per_turn`` (methods kissicp, rslam, odometry,
-ekf, isam2) and ``<mission>_kissicp_points_per_turn``.
+ekf, isam2) and ``<mission>_kissicp_points_per_turn``, ``<mission>_kissicp_extractor_ms_per_turn`` (radar.PeakExtractor
+alone).
 """
 
 from __future__ import annotations
@@ -88,8 +89,10 @@ def run_mission(name: str, mission: Path, out: Path, kiss_k: list[int]) -> dict:
     d = out / "kissicp"
     s = _run("kiss_icp_navtech.yaml", mission, d)["extra"]
     ate, pct = metrics(d)
-    res["kissicp"] = {"ate_m": ate, "ate_pct": pct, "ms_per_turn": _ms(s, "points", "ms_per_turn")
-                      + _ms(s, "kissicp", "ms_per_turn"), "points_per_turn": s.get("kissicp", {}).get("points_per_turn"),
+    res["kissicp"] = {"ate_m": ate, "ate_pct": pct,
+                      "ms_per_turn": _ms(s, "points", "ms_per_turn") + _ms(s, "kissicp", "ms_per_turn"),
+                      "points_per_turn": s.get("kissicp", {}).get("points_per_turn"),
+                      "extractor_ms_per_turn": _ms(s, "points", "ms_per_turn"),
                       "poses": _poses(d / "kiss_icp_navtech.mcap", "kissicp/pose")}
     for k in kiss_k:
         dk = out / f"kissicp-k{k}"
@@ -97,7 +100,8 @@ def run_mission(name: str, mission: Path, out: Path, kiss_k: list[int]) -> dict:
         a, p = metrics(dk)
         res[f"kissicp_k{k}"] = {"ate_m": a, "ate_pct": p, "ms_per_turn": _ms(sk, "points", "ms_per_turn")
                                 + _ms(sk, "kissicp", "ms_per_turn"),
-                                "points_per_turn": sk.get("kissicp", {}).get("points_per_turn")}
+                                "points_per_turn": sk.get("kissicp", {}).get("points_per_turn"),
+                                "extractor_ms_per_turn": _ms(sk, "points", "ms_per_turn")}
     d = out / "rslam"
     s = _run("oxford.yaml", mission, d)["extra"]
     ate, pct = metrics(d)
@@ -189,13 +193,15 @@ def main() -> int:
         for key in list(METHODS) + [k for k in res if k.startswith("kissicp_k")]:
             r = res[key]
             title = METHODS.get(key, f"kiss-icp, k = {key.split('_k')[-1]}")
-            pts = f"  ({r['points_per_turn']} points per turn)" if r.get("points_per_turn") is not None else ""
+            pts = (f"  ({r['points_per_turn']} points per turn; extractor {r['extractor_ms_per_turn']:.1f} ms)"
+                   if r.get("points_per_turn") is not None else "")
             print(f"  {title:24s} {r['ate_m']:8.2f} {r['ate_pct']:10.2f} {r['ms_per_turn']:12.1f}{pts}")
             result[f"{name}_{key}_ate_m"] = round(r["ate_m"], 3)
             result[f"{name}_{key}_ate_pct"] = round(r["ate_pct"], 3)
             result[f"{name}_{key}_ms_per_turn"] = round(r["ms_per_turn"], 1)
             if r.get("points_per_turn") is not None:
                 result[f"{name}_{key}_points_per_turn"] = r["points_per_turn"]
+                result[f"{name}_{key}_extractor_ms_per_turn"] = round(r["extractor_ms_per_turn"], 1)
         figure(name, res, folder / "trajectories.png")
         print(f"  figure: {folder / 'trajectories.png'}")
     print(json.dumps(result))

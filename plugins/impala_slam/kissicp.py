@@ -17,7 +17,14 @@ Two things are adapted to a rotating radar, with kiss-icp's own functions:
   moves every point to the pose at the last one, with its last relative motion as the motion
   over the frame. A turn lasts one rotation whatever the time since the previous turn, so the
   deskew is done apart (kiss-icp's Preprocessor) with that motion rescaled to the time between
-  the turn's first and last points, and the registration runs on the deskewed points.
+  the turn's first and last points, and the registration runs on the deskewed points. The
+  first two turns, registered before any motion is known, enter the map undeskewed: once the
+  second is registered the map is made again from both, deskewed with the motion between them
+  (a vehicle already moving at the first turn: without it the third turn jumps by a metre).
+- A radar standing still adds its clutter to the map turn after turn until every voxel near it
+  is full, and the registration then holds the vehicle still when it drives off (the RADIATE
+  drive's first minute). With ``map_min_motion_m`` a turn enters the map only once the pose has
+  moved that far (or turned a tenth of it in radians) since the last turn that did.
 
 The pose (frame ``odom``, the first turn's pose at the origin) is the registered pose projected
 on the plane, stamped at the turn's last point (its last beam for ``radar.PeakExtractor``, unless
@@ -101,6 +108,9 @@ class KissIcp(Component):
     convergence = Param(float, default=1e-4, gt=0, doc="ICP stops when the update is below this")
     threads = Param(int, default=1, ge=0, doc="kiss-icp's threads (0: all cores; 1 keeps runs bit-identical)")
     min_points = Param(int, default=20, ge=1, doc="a turn with fewer points is not registered")
+    map_min_motion_m = Param(float, default=0.0, ge=0,
+                             doc="a turn updates the local map only once the pose moved this far (or turned "
+                             "map_min_motion_m / 10 rad) since the last update; 0: every turn, as kiss-icp")
 
     def start(self) -> None:
         try:
@@ -123,6 +133,23 @@ class KissIcp(Component):
             adaptive_threshold=AdaptiveThresholdConfig(initial_threshold=self.initial_threshold_m,
                                                        min_motion_th=self.min_motion_m))
         self._icp: Any = KissICP(config)
+        self._map_pose: tuple[float, float, float] | None = None  # pose of the last map update
+        self._boot: list[tuple[np.ndarray, np.ndarray, float, np.ndarray]] = []  # the first turns, as seen
+        self.map_updates = 0
+        if self.map_min_motion_m > 0:
+            update = self._icp.local_map.update
+
+            def gated_update(points: np.ndarray, pose: np.ndarray) -> None:
+                p = _planar(pose)
+                if self._map_pose is not None:
+                    dx, dy, dth = between(self._map_pose, p)
+                    if math.hypot(dx, dy) < self.map_min_motion_m and abs(dth) < 0.1 * self.map_min_motion_m:
+                        return
+                self._map_pose = p
+                self.map_updates += 1
+                update(points, pose)
+
+            self._icp.local_map.update = gated_update
         self._deskewer = (Preprocessor(self.max_range_m, self.min_range_m, True, self.threads)
                           if self.deskew else None)
         self._t_prev: int | None = None  # stamp (last point) of the previous registered turn
@@ -155,12 +182,17 @@ class KissIcp(Component):
                 points = self._deskewer.preprocess(points, (t_ns - t_first) * 1e-9,
                                                    _scaled(twist, span / self._dt_delta))
         before = _planar(icp.last_pose)
+        raw = points if self.turns < 2 and self._deskewer is not None else None
         icp.register_frame(points, np.zeros(n))  # kiss-icp's own deskew is off: done above
         x, y, theta = _planar(icp.last_pose)
         # keep kiss-icp's state in the plane: z, roll and pitch are unobservable from planar points
         icp.last_pose = _matrix(x, y, theta)
         step = between(before, (x, y, theta))
         icp.last_delta = _matrix(*step)
+        if raw is not None:
+            self._boot.append((raw, (t_ns - t_first) * 1e-9, span, icp.last_pose.copy()))
+            if len(self._boot) == 2 and dt > 0:
+                self._rebuild_map(se2_log(*step), dt)
         self._dt_delta = dt
         self._t_prev = t_ref
         self.turns += 1
@@ -171,10 +203,22 @@ class KissIcp(Component):
             vx, _, w = se2_log(*step)
             self.twist.emit(t_ref, Twist2D(vx / dt, w / dt))
 
+    def _rebuild_map(self, twist: tuple[float, float, float], dt: float) -> None:
+        """The first two turns entered the map as seen (no motion known to deskew them): once the
+        second is registered, the map is made again from both deskewed with the motion between
+        them, so that the next (deskewed) turns meet an undistorted map."""
+        icp = self._icp
+        icp.local_map.clear()
+        self._map_pose = None
+        for raw, t_rel, span, pose in self._boot:
+            frame = self._deskewer.preprocess(raw, t_rel, _scaled(twist, span / dt)) if span > 0 else raw
+            icp.local_map.update(icp.voxelize(frame)[1], pose)
+        self._boot = []
+
     def summary(self) -> dict:
         if not getattr(self, "turns", 0):
             return {}
-        return {"turns": self.turns, "skipped_turns": self.skipped_turns,
+        return {"turns": self.turns, "skipped_turns": self.skipped_turns, "map_updates": self.map_updates or self.turns,
                 "points_per_turn": round(self.points / self.turns, 1),
                 "ms_per_turn": round(1e3 * self.seconds / self.turns, 2)}
 
