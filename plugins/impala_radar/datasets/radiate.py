@@ -11,6 +11,17 @@
   wall on the left at ~4 m, on the right at >= 9 m), as Oxford's and Boreas' Navtech encoders
   (clockwise) and the dataset's SDK say. So ``rotation="cw"`` by default and the project's
   azimuth is ``wrap(-a + radians(azimuth_offset_deg))`` (``"ccw"``: ``wrap(a + offset)``).
+* **Azimuth offset** :data:`RADIATE_AZIMUTH_OFFSET_DEG` = -2.2 deg by default, measured: a car
+  moves along its own forward axis, so the direction of the translation between consecutive
+  scans (phase correlation of Cartesian renders, regressed on the turn rate to remove the
+  lever arm) is the radar's yaw against the vehicle: +2.39 +- 0.17 deg (to the left) on the
+  shared Edinburgh drive (136 moving pairs, 2019-02-12), +1.77 +- 0.32 deg on the 18 scans of
+  fog_6_0 shipped with radiate_sdk (2019-11-27); -2.2 deg, their weighted mean, turns the
+  motion forward (bench/readers_kits.py). The same method gives +0.51 +- 0.10 deg on the
+  Oxford sample, whose ground truth gave -0.95 deg: about 0.4 deg of method error. RADIATE's
+  own Cartesian images (radiate_sdk tiny_foggy, 18 pairs) put column j at ``j 0.9 + 0.36`` deg
+  clockwise of up (400 columns per turn, not 399; the issue's "-0.4 deg"): the SDK's drawing
+  convention, not the mounting, and 1.8 deg short of the motion.
 * **Time.** ``Navtech_Polar.txt`` gives one time per frame (``Frame: 000001 Time: <Unix s>``),
   taken as the time of column 0. The rotation period P is the median interval between
   frames; column j of frame i is at ``t_i + floor(j span_i / N)`` with
@@ -38,9 +49,12 @@ from impala_flow import msgs
 from .common import DatasetError, ImportReport, NavtechDataset, Scan, enu_to_odom, navtech_config
 from .navtech_png import check_grey8, decode_grey8, png_header
 
-__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RadiateDataset", "read_frame_times", "read_gps_imu", "geodetic_to_en"]
+__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RadiateDataset", "read_frame_times",
+           "read_gps_imu", "geodetic_to_en"]
 
 RADIATE_RANGE_RESOLUTION_M = 0.17361
+#: constant added to every azimuth (CCW positive): the radar's yaw, measured (see the module doc)
+RADIATE_AZIMUTH_OFFSET_DEG = -2.2
 _LINE = re.compile(r"^\s*Frame:\s*(\d+)\s+Time:\s*(\d+)(?:\.(\d+))?\s*$")
 
 
@@ -127,7 +141,8 @@ class RadiateDataset(NavtechDataset):
     name = "radiate"
 
     def __init__(self, folder: str | Path, range_resolution_m: float = RADIATE_RANGE_RESOLUTION_M,
-                 azimuth_offset_deg: float = 0.0, range_offset_bins: float = 0.5, rotation: str = "cw",
+                 azimuth_offset_deg: float = RADIATE_AZIMUTH_OFFSET_DEG, range_offset_bins: float = 0.5,
+                 rotation: str = "cw",
                  report: ImportReport | None = None) -> None:
         self.folder = Path(folder)
         polar = self.folder / "Navtech_Polar"
