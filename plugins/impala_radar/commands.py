@@ -78,7 +78,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    "radiate 0.17361)")
     p.add_argument("--azimuth-offset-deg", type=float, default=None, metavar="DEG",
                    help="constant added to every azimuth, counter-clockwise positive (default: the format's, "
-                   "measured: oxford -0.95, radiate -2.2, boreas 0)")
+                   "measured: oxford -0.95, radiate -2.3, boreas 0)")
     p.add_argument("--db-per-count", type=float, default=0.5, metavar="DB",
                    help="log scale of the pixels: beams carry linear power 10^(count x DB / 10) (default 0.5)")
     p.add_argument("--range-offset-bins", type=float, default=None, metavar="BINS",

@@ -138,7 +138,7 @@ class RadiateScans(_NavtechFolderScans):
     format = "radiate"
     range_resolution_m = Param(float, default=0.17361, gt=0.0, doc="range per bin (the dataset's 0.17361 m)")
     azimuth_offset_deg = Param(float, default=RADIATE_AZIMUTH_OFFSET_DEG,
-                               doc="constant added to every azimuth, CCW positive: -2.2 deg measured")
+                               doc="constant added to every azimuth, CCW positive: -2.3 deg measured")
     rotation = Param(str, default="cw", choices=("cw", "ccw"), doc="sense of increasing columns seen from above "
                      "(cw: checked on the data)")
 

@@ -45,7 +45,7 @@ def test_help_states_the_oxford_resolution_that_is_applied(tmp_path):
     cfg = _beams(out)[0].config
     assert cfg.range_per_bin_m == pytest.approx(said, rel=1e-12) and said == 0.0438
     assert "0.0432" in text  # the README's value is named as such, not as the default
-    assert re.search(r"measured: oxford -0\.95, radiate -2\.2", text) and "boreas -0.31 m" in text
+    assert re.search(r"measured: oxford -0\.95, radiate -2\.3", text) and "boreas -0.31 m" in text
 
 
 @pytest.mark.parametrize(("t0_us", "res"), [(1632182400 * 10**6 - 1, 0.0596), (1632182400 * 10**6, 0.04381)])
@@ -100,13 +100,13 @@ def test_boreas_zero_range_falls_on_the_zero_beat_frequency_notch():
 
 def test_radiate_azimuth_is_the_sdk_column_angle_clockwise_plus_the_measured_offset(tmp_path):
     """radiate_sdk: 400 azimuth cells per turn, column 0 forward, clockwise; our beams are CCW with the
-    measured mounting offset, -2.2 deg by default (--azimuth-offset-deg overrides)."""
+    measured mounting offset, -2.3 deg by default (--azimuth-offset-deg overrides)."""
     radiate_folder(tmp_path, ["100.0", "100.25"], rows=8)
     out = tmp_path / "r.mcap"
     assert main(["import", "radiate", str(tmp_path), "-o", str(out), "--no-progress"]) == 0
     az = np.array([b.azimuth_rad for b in _beams(out)[:400]])
     j = np.arange(400)
-    assert np.allclose(wrap_angle(az - (-2 * np.pi * j / 400 + np.radians(-2.2))), 0.0, atol=1e-12)
+    assert np.allclose(wrap_angle(az - (-2 * np.pi * j / 400 + np.radians(-2.3))), 0.0, atol=1e-12)
     out2 = tmp_path / "r2.mcap"
     assert main(["import", "radiate", str(tmp_path), "-o", str(out2), "--no-progress",
                  "--azimuth-offset-deg", "0"]) == 0
@@ -164,4 +164,4 @@ def test_radiate_car_moves_straight_ahead_in_the_radar_frame():
     coef, *_ = np.linalg.lstsq(design, ang, rcond=None)
     sem = np.sqrt(np.linalg.inv(design.T @ design)[0, 0] * (ang - design @ coef).var(ddof=2))
     assert abs(np.degrees(coef[0])) < 0.75 and np.degrees(sem) < 0.35
-    assert abs(np.degrees(coef[0]) + 2.2) > 1.5  # what offset 0 would give: the offset is not noise
+    assert abs(np.degrees(coef[0]) + 2.3) > 1.5  # what offset 0 would give: the offset is not noise

@@ -103,7 +103,8 @@ class BoreasDataset(NavtechPngDataset):
             range_offset_bins = BOREAS_RANGE_OFFSET_M / range_resolution_m
         super().__init__(folder, range_resolution_m, azimuth_offset_deg, range_offset_bins or 0.0, report)
         if report is not None:
-            report.notes.append("column 10 is the chirp direction (0 / 255), not a validity flag: every row kept")
+            report.notes.append("column 10 is the chirp direction (255 up / 0 down, on the beams as RadarBeam.chirp), "
+                                "not a validity flag: every row kept")
 
     def chirp_of(self, flag: np.ndarray) -> np.ndarray | None:
         """+1 (up-chirp) where column 10 is 255, -1 where 0, when the scan holds both values only."""

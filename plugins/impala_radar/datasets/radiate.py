@@ -11,17 +11,17 @@
   wall on the left at ~4 m, on the right at >= 9 m), as Oxford's and Boreas' Navtech encoders
   (clockwise) and the dataset's SDK say. So ``rotation="cw"`` by default and the project's
   azimuth is ``wrap(-a + radians(azimuth_offset_deg))`` (``"ccw"``: ``wrap(a + offset)``).
-* **Azimuth offset** :data:`RADIATE_AZIMUTH_OFFSET_DEG` = -2.2 deg by default, measured: a car
+* **Azimuth offset** :data:`RADIATE_AZIMUTH_OFFSET_DEG` = -2.3 deg by default, measured: a car
   moves along its own forward axis, so the direction of the translation between consecutive
-  scans (phase correlation of Cartesian renders, regressed on the turn rate to remove the
-  lever arm) is the radar's yaw against the vehicle: +2.39 +- 0.17 deg (to the left) on the
-  shared Edinburgh drive (136 moving pairs, 2019-02-12), +1.77 +- 0.32 deg on the 18 scans of
-  fog_6_0 shipped with radiate_sdk (2019-11-27); -2.2 deg, their weighted mean, turns the
-  motion forward (bench/readers_kits.py). The same method gives +0.51 +- 0.10 deg on the
-  Oxford sample, whose ground truth gave -0.95 deg: about 0.4 deg of method error. RADIATE's
-  own Cartesian images (radiate_sdk tiny_foggy, 18 pairs) put column j at ``j 0.9 + 0.36`` deg
-  clockwise of up (400 columns per turn, not 399; the issue's "-0.4 deg"): the SDK's drawing
-  convention, not the mounting, and 1.8 deg short of the motion.
+  scans in the radar frame (phase correlation of Cartesian renders, regressed on the turn per
+  metre to remove the lever arm) is the radar's yaw against the vehicle. With no offset it is
+  +2.44 +- 0.12 deg (to the left) on the shared Edinburgh drive (146 moving pairs, 2019-02-12)
+  and +2.27 +- 0.06 deg on the 18 scans of fog_6_0 shipped with radiate_sdk (2019-11-27), so
+  -2.3 deg (bench/readers_kits.py). The same method gives +0.97 +- 0.23 deg on the Oxford
+  sample, whose ground truth gave -0.95 deg. R-SLAM's lateral steps on the 6 fog_6_0 scans go
+  from +0.11 m to +0.01 m. RADIATE's own Cartesian images (radiate_sdk tiny_foggy, 18 pairs)
+  draw column j at ``j 0.9 + 0.37`` deg clockwise of up (400 columns per turn, not the 399 its
+  README suggests; the issue's "-0.4 deg"): the SDK's drawing convention, not the mounting.
 * **Time.** ``Navtech_Polar.txt`` gives one time per frame (``Frame: 000001 Time: <Unix s>``),
   taken as the time of column 0. The rotation period P is the median interval between
   frames; column j of frame i is at ``t_i + floor(j span_i / N)`` with
@@ -54,7 +54,7 @@ __all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RadiateD
 
 RADIATE_RANGE_RESOLUTION_M = 0.17361
 #: constant added to every azimuth (CCW positive): the radar's yaw, measured (see the module doc)
-RADIATE_AZIMUTH_OFFSET_DEG = -2.2
+RADIATE_AZIMUTH_OFFSET_DEG = -2.3
 _LINE = re.compile(r"^\s*Frame:\s*(\d+)\s+Time:\s*(\d+)(?:\.(\d+))?\s*$")
 
 
