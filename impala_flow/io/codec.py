@@ -41,7 +41,7 @@ from ..msgs._base import is_message, schema_name, schema_version
 from .errors import CodecError
 
 __all__ = [
-    "Codec", "MessageCodec", "BuiltinCodec", "builtin_codecs",
+    "Codec", "MessageCodec", "UpgradingCodec", "BuiltinCodec", "builtin_codecs",
     "SCHEMA_ENCODING", "MESSAGE_ENCODING",
 ]
 
@@ -393,6 +393,22 @@ class MessageCodec(_BaseCodec):
         self._schema = _schema_json(
             {"name": self.schema_name, "version": self.schema_version, "kind": "message",
              "fields": comp.fields}, defs)
+
+
+class UpgradingCodec(MessageCodec):
+    """Reads recordings of an older version of a message type: decodes the old layout
+    (``old_cls``, a ``@message`` dataclass of that version) and returns ``upgrade(old)``, an
+    instance of the current type. Read-only: values are always written at the current version."""
+
+    def __init__(self, old_cls: type, upgrade: Callable[[Any], Any]) -> None:
+        super().__init__(old_cls)
+        self._upgrade = upgrade
+
+    def decode(self, data: bytes | memoryview) -> Any:
+        return self._upgrade(super().decode(data))
+
+    def encode_parts(self, value: Any) -> list:
+        raise CodecError(f"{self.schema_name} version {self.schema_version} is read-only (an older version)")
 
 
 class BuiltinCodec(_BaseCodec):

@@ -6,7 +6,7 @@ import json
 from collections.abc import Iterator
 from typing import Any
 
-from .codec import SCHEMA_ENCODING, Codec, MessageCodec, builtin_codecs
+from .codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
 from .errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
 
 __all__ = ["CodecRegistry", "VERSION_KEY"]
@@ -21,7 +21,8 @@ class CodecRegistry:
 
     A registry is built per run (never global). ``CodecRegistry()`` holds the builtin
     payloads (int, float, str, bytes, bool, numpy.ndarray, None);
-    :meth:`with_standard_types` adds every type of :mod:`impala_flow.msgs`.
+    :meth:`with_standard_types` adds every type of :mod:`impala_flow.msgs` (and readers of
+    the older versions listed in ``msgs.LEGACY_TYPES``).
     """
 
     def __init__(self, *, builtins: bool = True) -> None:
@@ -40,6 +41,8 @@ class CodecRegistry:
         reg = cls()
         for t in msgs.BUILTIN_TYPES:
             reg.add_type(t, plugin=ENGINE)
+        for old, upgrade in msgs.LEGACY_TYPES:  # older versions, read and upgraded
+            reg.add_codec(UpgradingCodec(old, upgrade), plugin=ENGINE)
         return reg
 
     @classmethod

@@ -16,15 +16,19 @@ from .geometry import (
     wrap_angle,
 )
 from .sensors import (
+    CHIRP_DOWN,
+    CHIRP_UP,
     SPEED_OF_LIGHT_MPS,
     ObjectStates,
     RadarBeam,
+    RadarBeamV1,
     RadarConfig,
     RadarDetections,
     RadarScan,
     Speed,
     TrackExistence,
     YawRate,
+    upgrade_radar_beam_v1,
 )
 
 BUILTIN_TYPES: tuple[type, ...] = (
@@ -33,9 +37,12 @@ BUILTIN_TYPES: tuple[type, ...] = (
     TrackExistence,
 )
 
+#: older versions of standard types, read from recordings and upgraded: (old type, upgrade function)
+LEGACY_TYPES: tuple[tuple[type, object], ...] = ((RadarBeamV1, upgrade_radar_beam_v1),)
+
 __all__ = [
     "message", "is_message", "schema_name", "schema_version", "freeze", "wrap_angle", "HEADING_UNKNOWN_VAR_RAD2",
     "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D",
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
-    "TrackExistence", "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES",
+    "TrackExistence", "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES", "LEGACY_TYPES", "CHIRP_UP", "CHIRP_DOWN",
 ]

@@ -10,7 +10,7 @@ from ._base import message
 
 __all__ = [
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
-    "TrackExistence", "SPEED_OF_LIGHT_MPS",
+    "TrackExistence", "SPEED_OF_LIGHT_MPS", "CHIRP_UP", "CHIRP_DOWN", "RadarBeamV1", "upgrade_radar_beam_v1",
 ]
 
 SPEED_OF_LIGHT_MPS = 299_792_458.0
@@ -72,7 +72,13 @@ class RadarConfig:
         return (np.asarray(range_m) - self.range_offset_m) / self.range_per_bin_m
 
 
-@message("impala.RadarBeam", version=1)
+#: ``RadarBeam.chirp`` of a beam measured with a rising ramp only
+CHIRP_UP = 1
+#: ``RadarBeam.chirp`` of a beam measured with a falling ramp only
+CHIRP_DOWN = -1
+
+
+@message("impala.RadarBeam", version=2)
 class RadarBeam:
     """One beam of a rotating radar, stamped at its own acquisition time.
 
@@ -80,6 +86,12 @@ class RadarBeam:
     clockwise positive). ``up``/``down`` are the power spectra (linear power, float32) of
     the rising and falling ramps, indexed by beat-frequency bin; a power-only radar leaves
     ``down`` empty. ``turn`` counts antenna turns, ``index`` the beam within the turn.
+    ``chirp`` says which single ramp a power-only beam (``up`` only) was measured with, for
+    radars that alternate them from azimuth to azimuth (Doppler-enabled Navtech firmware,
+    Boreas 2024): :data:`CHIRP_UP` (+1) or :data:`CHIRP_DOWN` (-1); 0 when not told (one ramp
+    direction for every beam, or both ramps in ``up``/``down``). A target's range differs
+    between the two by a term proportional to its radial speed, so neighbouring up and down
+    beams give Doppler. Version 2 added ``chirp``; version-1 recordings read with chirp 0.
     """
 
     azimuth_rad: float
@@ -88,6 +100,24 @@ class RadarBeam:
     up: np.ndarray
     down: np.ndarray
     config: RadarConfig
+    chirp: int = 0
+
+
+@message("impala.RadarBeam", version=1)
+class RadarBeamV1:
+    """The layout of :class:`RadarBeam` version 1 (no ``chirp``), to read older recordings:
+    :func:`upgrade_radar_beam_v1` turns one into a :class:`RadarBeam` with chirp 0."""
+
+    azimuth_rad: float
+    turn: int
+    index: int
+    up: np.ndarray
+    down: np.ndarray
+    config: RadarConfig
+
+
+def upgrade_radar_beam_v1(old: RadarBeamV1) -> RadarBeam:
+    return RadarBeam(old.azimuth_rad, old.turn, old.index, old.up, old.down, old.config)
 
 
 @message("impala.RadarScan", version=1)

@@ -76,15 +76,17 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("folder", help="dataset folder (oxford/boreas: holding radar/; radiate: holding Navtech_Polar/)")
     p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap)")
     p.add_argument("--range-resolution-m", type=float, default=None, metavar="M",
-                   help="range per bin (default: oxford 0.0432; boreas by date, 0.0596 before 2021-09-21 and "
-                   "0.04381 after; radiate 0.17361)")
+                   help="range per bin (default: oxford 0.0438, measured on the sample's ground truth where the "
+                   "dataset's README says 0.0432; boreas by date, 0.0596 before 2021-09-21 and 0.04381 after; "
+                   "radiate 0.17361)")
     p.add_argument("--azimuth-offset-deg", type=float, default=None, metavar="DEG",
                    help="constant added to every azimuth, counter-clockwise positive (default: the format's, "
-                   "see 'impala-flow plugins radar')")
+                   "measured: oxford -0.95, radiate -2.3, boreas 0)")
     p.add_argument("--db-per-count", type=float, default=0.5, metavar="DB",
                    help="log scale of the pixels: beams carry linear power 10^(count x DB / 10) (default 0.5)")
-    p.add_argument("--range-offset-bins", type=float, default=0.5, metavar="BINS",
-                   help="range of bin 0 in bins (default 0.5: bin centres, the Navtech SDKs)")
+    p.add_argument("--range-offset-bins", type=float, default=None, metavar="BINS",
+                   help="range of bin 0 in bins (default: oxford and radiate 0.5, bin centres as their SDKs "
+                   "draw them; boreas -0.31 m, the offset its documentation gives)")
     p.add_argument("--keep-frame-stamps", action="store_true",
                    help="radiate: beam times from the frame stamps as written (default: frames stamped late, "
                    "when the logger fell behind, are put back on the radar's turn clock)")
@@ -128,8 +130,9 @@ def _import(args: argparse.Namespace) -> int:
     from .datasets import DatasetError
 
     session = open_session()
-    params: dict = {"folder": str(Path(args.folder)), "range_offset_bins": args.range_offset_bins,
-                    "skip_bad_scans": args.skip_bad_scans}
+    params: dict = {"folder": str(Path(args.folder)), "skip_bad_scans": args.skip_bad_scans}
+    if args.range_offset_bins is not None:
+        params["range_offset_bins"] = args.range_offset_bins
     if args.azimuth_offset_deg is not None:
         params["azimuth_offset_deg"] = args.azimuth_offset_deg
     if args.keep_frame_stamps:

@@ -18,6 +18,7 @@ from impala_flow import Output, Param, Source
 from impala_flow.msgs import ObjectStates, Pose2D, RadarBeam, Speed, YawRate
 
 from .datasets.oxford import OXFORD_AZIMUTH_OFFSET_DEG, OXFORD_RANGE_RESOLUTION_M
+from .datasets.radiate import RADIATE_AZIMUTH_OFFSET_DEG
 
 __all__ = ["RadarDriver", "OxfordScans", "BoreasScans", "RadiateScans", "Simulator", "SIM_TOPICS",
            "DATASET_TOPICS", "OXFORD_TOPICS", "DATASET_SOURCES"]
@@ -123,6 +124,8 @@ class BoreasScans(_NavtechFolderScans):
     format = "boreas"
     range_resolution_m = Param(float, default=0.0, ge=0.0, doc="range per bin; 0 = by date (0.0596 m before "
                                "2021-09-21, 0.04381 m after)")
+    range_offset_bins = Param(float, default=None, doc="range of bin 0 in bins: bin k at (k + this) x resolution; "
+                              "default (None): -0.31 m, the Boreas documentation's calibrated offset")
 
     def _options(self) -> dict[str, Any]:
         return {**super()._options(), "range_resolution_m": self.range_resolution_m}
@@ -134,6 +137,8 @@ class RadiateScans(_NavtechFolderScans):
 
     format = "radiate"
     range_resolution_m = Param(float, default=0.17361, gt=0.0, doc="range per bin (the dataset's 0.17361 m)")
+    azimuth_offset_deg = Param(float, default=RADIATE_AZIMUTH_OFFSET_DEG,
+                               doc="constant added to every azimuth, CCW positive: -2.3 deg measured")
     rotation = Param(str, default="cw", choices=("cw", "ccw"), doc="sense of increasing columns seen from above "
                      "(cw: checked on the data)")
     retime = Param(bool, default=True, doc="put frames stamped late (the logger fell behind) back on the radar's "

@@ -42,7 +42,12 @@ def test_real_frame_imports_as_400_beams_of_6848_bins_and_300_m(tmp_path, capsys
     assert cfg.name == "navtech-cir304h-boreas" and cfg.n_bins == 6848 == pixels.shape[1] - 11
     assert int(png.stem) > 1632182400 * 10**6 and cfg.range_per_bin_m == pytest.approx(0.04381, rel=1e-12)
     assert cfg.range_max_m == pytest.approx(6848 * 0.04381) and 299.0 < cfg.range_max_m < 301.0
-    assert cfg.range_offset_m == pytest.approx(0.5 * 0.04381)
+    # range: the Boreas documentation's `range_m = bin_index * resolution + radar_offset`, radar_offset -0.31 m
+    k = np.array([0, 1, 57, 6847])
+    assert np.allclose(cfg.range_of_bin_m(k), k * 0.04381 - 0.31, rtol=0, atol=1e-12)
+    # chirp: column 10 = 255 is an up-chirp (pyboreas: chirp_type = col10 == 255, 1 = 'up-chirp'), 0 down
+    assert [b.chirp for b in beams] == [1 if f == 255 else -1 for f in pixels[:, 10]]
+    assert {b.chirp for b in beams[0::2]} == {-1} and {b.chirp for b in beams[1::2]} == {1}  # they alternate
     # timing: the row stamps (us) of the PNG, in order, one turn ~ 0.25 s
     stamps_us = [int.from_bytes(bytes(row[:8].tolist()), "little") for row in pixels]
     assert times == [s * 1000 for s in stamps_us] and times[0] == int(png.stem) * 1000

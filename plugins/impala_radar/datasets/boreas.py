@@ -7,8 +7,25 @@ Same PNG family as Oxford (see :mod:`.navtech_png`), with the dataset's own numb
 * range per bin by date: 0.0596 m before 2021-09-21 00:00 UTC (Unix 1632182400 s), 0.04381 m
   after (a firmware upgrade), decided on the first scan's time unless ``range_resolution_m``
   is given;
-* column 10 is **not** a validity flag in the newer firmware: it alternates 0 / 255 with the
-  chirp direction of the azimuth, so every row is kept (Boreas' own tooling ignores it too).
+* range of bin k: ``k resolution - 0.31 m`` (:data:`BOREAS_RANGE_OFFSET_M`), the offset the
+  Boreas documentation gives (DATA_REFERENCE.md: "provided by Navtech and independently
+  verified in our own calibration experiment"; pyboreas ``calib.radar_offset``), unless
+  ``range_offset_bins`` is given. Checked on the shared 2024 frame: the notch of zero beat
+  frequency (the IF high-pass) in the mean power of the 200 down-chirp azimuths is at bin 8.5
+  (parabola vertex; 8.3 over all 400, none in the up-chirp ones), i.e. range 0 at ``k resolution
+  - 0.37 m``: the documented -0.31 m is 1.4 bins from it,
+  the bin-centre convention of the Oxford SDK (``(k + 0.5) resolution``, +0.022 m at bin 0)
+  0.38 m from it. pyboreas' own Cartesian images use bin centres and ignore the offset;
+* nothing is blanked: pyboreas zeroes the first 2.5 m (the radome and mount echoes, a hump
+  of power at every azimuth up to about 1 m); the chain's components ignore echoes nearer
+  than their ``range_min_m`` (3 m by default), and the reader keeps the data as recorded;
+* column 10 is **not** a validity flag: every row is kept. In Doppler-enabled frames it
+  alternates 255 / 0, the up / down chirp of the azimuth (pyboreas: ``chirp_type = col10 ==
+  255``, 1 = up-chirp), carried as ``RadarBeam.chirp`` (+1 / -1): a target's range differs
+  between the two by ``beta`` x its radial speed (pyboreas ``calib.radar_doppler_beta``,
+  0.049 s). A scan whose column 10 is not made of both 0 and 255 gives chirp 0 (not told):
+  decided on the data, not by pyboreas' date (1733248400 s), which the shared frame of
+  2024-12-03 15:25 UTC precedes although it alternates.
 
 Ground truth, ``applanix/radar_poses.csv``: ``GPSTime,easting,northing,altitude,vel_east,
 vel_north,vel_up,roll,pitch,heading,angvel_z,angvel_y,angvel_x``; ``GPSTime`` (us) equals the
@@ -32,10 +49,13 @@ import numpy as np
 from .common import DatasetError, ImportReport, enu_to_odom, numbers, read_csv_columns, time_steps_back
 from .oxford import NavtechPngDataset
 
-__all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BoreasDataset", "boreas_range_resolution_m", "read_boreas_poses",
+__all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BOREAS_RANGE_OFFSET_M", "BoreasDataset", "boreas_range_resolution_m",
+           "read_boreas_poses",
            "yaw_enu_of_boreas"]
 
 BOREAS_RESOLUTION_SWITCH_S = 1632182400  # 2021-09-21 00:00 UTC
+#: range of bin 0 (bin k at k x resolution + this), the Boreas documentation's calibrated offset
+BOREAS_RANGE_OFFSET_M = -0.31
 BOREAS_POSE_COLUMNS = ["GPSTime", "easting", "northing", "altitude", "vel_east", "vel_north", "vel_up",
                        "roll", "pitch", "heading", "angvel_z", "angvel_y", "angvel_x"]
 
@@ -80,14 +100,23 @@ class BoreasDataset(NavtechPngDataset):
     flag_is_valid = False
 
     def __init__(self, folder: str | Path, range_resolution_m: float = 0.0, azimuth_offset_deg: float = 0.0,
-                 range_offset_bins: float = 0.5, report: ImportReport | None = None) -> None:
+                 range_offset_bins: float | None = None, report: ImportReport | None = None) -> None:
         from .oxford import timestamped_pngs
 
         if not range_resolution_m:
             range_resolution_m = boreas_range_resolution_m(timestamped_pngs(Path(folder))[0][0])
-        super().__init__(folder, range_resolution_m, azimuth_offset_deg, range_offset_bins, report)
+        if range_offset_bins is None and range_resolution_m > 0:
+            range_offset_bins = BOREAS_RANGE_OFFSET_M / range_resolution_m
+        super().__init__(folder, range_resolution_m, azimuth_offset_deg, range_offset_bins or 0.0, report)
         if report is not None:
-            report.notes.append("column 10 is the chirp direction (0 / 255), not a validity flag: every row kept")
+            report.notes.append("column 10 is the chirp direction (255 up / 0 down, on the beams as RadarBeam.chirp), "
+                                "not a validity flag: every row kept")
+
+    def chirp_of(self, flag: np.ndarray) -> np.ndarray | None:
+        """+1 (up-chirp) where column 10 is 255, -1 where 0, when the scan holds both values only."""
+        if flag is None or not (np.any(flag == 255) and np.any(flag == 0) and np.all((flag == 0) | (flag == 255))):
+            return None
+        return np.where(flag == 255, 1, -1).astype(np.int8)
 
     def truth(self, report: ImportReport) -> tuple[np.ndarray, np.ndarray] | None:
         path = self.folder / "applanix" / "radar_poses.csv"

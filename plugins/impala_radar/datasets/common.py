@@ -49,8 +49,9 @@ def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offs
 @dataclass(eq=False)
 class Scan:
     """One antenna turn in acquisition order: per-row ``t_ns`` (int64), ``azimuth_rad`` (project
-    convention: CCW, 0 = forward, wrapped), ``power`` (float32 rows x bins, value / 255), and
-    ``keep`` (rows emitted as beams; the others are dropped for ``drop_reason``)."""
+    convention: CCW, 0 = forward, wrapped), ``power`` (float32 rows x bins, value / 255),
+    ``keep`` (rows emitted as beams; the others are dropped for ``drop_reason``) and ``chirp``
+    (per row, ``RadarBeam.chirp``: +1 up, -1 down; None when the format does not tell)."""
 
     path: Path
     t_ns: np.ndarray
@@ -58,6 +59,7 @@ class Scan:
     power: np.ndarray
     keep: np.ndarray
     drop_reason: str = ""
+    chirp: np.ndarray | None = None
 
 
 @dataclass
@@ -194,9 +196,10 @@ def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_coun
         if rows.size:
             last_t = int(scan.t_ns[rows[-1]])
         power = counts_to_power(scan.power, db_per_count)
-        for i, ti, az in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(),
-                             strict=True):
-            yield ti, 0, "beams", msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config)
+        chirp = [0] * rows.size if scan.chirp is None else scan.chirp[rows].tolist()
+        for i, ti, az, ch in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(), chirp,
+                                 strict=True):
+            yield ti, 0, "beams", msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config, int(ch))
 
 
 def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_bad: bool = False,

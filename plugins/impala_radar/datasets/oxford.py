@@ -1,8 +1,11 @@
 """Oxford Radar RobotCar: ``radar/<us>.png`` (Navtech CTS350-X) and ``gt/radar_odometry.csv``.
 
-Sensor: 400 azimuths, 3768 bins of 4.32 cm (the dataset's documentation; the reader takes
-the bin count from the PNG width and the resolution from ``range_resolution_m``). Column 10
-is a validity flag: rows whose flag is not 255 are dropped and counted.
+Sensor: 400 azimuths, 3768 bins (the count from the PNG width). Range per bin
+:data:`OXFORD_RANGE_RESOLUTION_M` = 4.38 cm by default, measured on the sample's ground truth
+(below); the dataset's README and its SDK's ``load_radar`` say 4.32 cm
+(:data:`OXFORD_README_RESOLUTION_M`), 2.1 sigma from the measurement; ``range_resolution_m``
+overrides. Bin k at its centre, ``(k + 0.5)`` bins, as the SDK's ``radar_polar_to_cartesian``
+samples it. Column 10 is a validity flag: rows whose flag is not 255 are dropped and counted.
 
 Ground truth (``gt/radar_odometry.csv``) uses x forward, y **right**, yaw **clockwise**
 (z down). Each row is the pose of the *source* (later) scan in the frame of the
@@ -122,12 +125,16 @@ class NavtechPngDataset(NavtechDataset):
         report.fact("radar gaps", gap_summary(stamps * 1000, 1e9 / self.config.rotation_hz,
                                               [f"{s}.png" for s in self.scan_stamps_us]) + missing)
 
+    def chirp_of(self, flag: np.ndarray) -> np.ndarray | None:
+        """``RadarBeam.chirp`` of each row from the flag byte (column 10), or None: not told."""
+        return None
+
     def read_scan(self, k: int) -> Scan:
         path = self.scan_paths[k]
         s = read_navtech_png(path, shape=self.shape)
         keep = s.valid if self.flag_is_valid else np.ones(s.valid.shape, dtype=bool)
         return Scan(path, s.timestamps_ns, ccw_azimuth(s.azimuth_rad, self.azimuth_offset_deg), s.power, keep,
-                    "Oxford valid flag (column 10) != 255")
+                    "Oxford valid flag (column 10) != 255", self.chirp_of(s.flag))
 
     def duration_hint_ns(self) -> int | None:
         return (self.scan_stamps_us[-1] - self.scan_stamps_us[0]) * 1000 + int(1e9 / self.config.rotation_hz)

@@ -11,6 +11,17 @@
   wall on the left at ~4 m, on the right at >= 9 m), as Oxford's and Boreas' Navtech encoders
   (clockwise) and the dataset's SDK say. So ``rotation="cw"`` by default and the project's
   azimuth is ``wrap(-a + radians(azimuth_offset_deg))`` (``"ccw"``: ``wrap(a + offset)``).
+* **Azimuth offset** :data:`RADIATE_AZIMUTH_OFFSET_DEG` = -2.3 deg by default, measured: a car
+  moves along its own forward axis, so the direction of the translation between consecutive
+  scans in the radar frame (phase correlation of Cartesian renders, regressed on the turn per
+  metre to remove the lever arm) is the radar's yaw against the vehicle. With no offset it is
+  +2.44 +- 0.12 deg (to the left) on the shared Edinburgh drive (146 moving pairs, 2019-02-12)
+  and +2.27 +- 0.06 deg on the 18 scans of fog_6_0 shipped with radiate_sdk (2019-11-27), so
+  -2.3 deg (bench/readers_kits.py). The same method gives +0.97 +- 0.23 deg on the Oxford
+  sample, whose ground truth gave -0.95 deg. R-SLAM's lateral steps on the 6 fog_6_0 scans go
+  from +0.11 m to +0.01 m. RADIATE's own Cartesian images (radiate_sdk tiny_foggy, 18 pairs)
+  draw column j at ``j 0.9 + 0.37`` deg clockwise of up (400 columns per turn, not the 399 its
+  README suggests; the issue's "-0.4 deg"): the SDK's drawing convention, not the mounting.
 * **Time.** ``Navtech_Polar.txt`` gives one time per frame (``Frame: 000001 Time: <Unix s>``),
   taken as the time of column 0; the nanoseconds are written without their leading zeros and
   padded on the left (RADIATE's SDK). A frame whose time goes back or repeats the previous is
@@ -67,11 +78,13 @@ from .common import (
 )
 from .navtech_png import check_grey8, decode_grey8, png_header
 
-__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RadiateDataset", "FrameIndex", "read_frame_times", "read_gps_imu",
-           "geodetic_to_en", "turn_clock", "course_over_ground", "COURSE_MIN_SPEED_MPS", "COURSE_BASELINE_S",
-           "GPS_VELOCITY_STD_MPS", "COURSE_STD_FLOOR_DEG"]
+__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RadiateDataset", "FrameIndex",
+           "read_frame_times", "read_gps_imu", "geodetic_to_en", "turn_clock", "course_over_ground",
+           "COURSE_MIN_SPEED_MPS", "COURSE_BASELINE_S", "GPS_VELOCITY_STD_MPS", "COURSE_STD_FLOOR_DEG"]
 
 RADIATE_RANGE_RESOLUTION_M = 0.17361
+#: constant added to every azimuth (CCW positive): the radar's yaw, measured (see the module doc)
+RADIATE_AZIMUTH_OFFSET_DEG = -2.3
 _LINE = re.compile(r"^\s*Frame:\s*(\d+)\s+Time:\s*(\d+)(?:\.(\d+))?\s*$")
 
 #: Course over ground: the GPS displacement over COURSE_BASELINE_S (centred on the fix) gives
@@ -272,8 +285,8 @@ class RadiateDataset(NavtechDataset):
     name = "radiate"
 
     def __init__(self, folder: str | Path, range_resolution_m: float = RADIATE_RANGE_RESOLUTION_M,
-                 azimuth_offset_deg: float = 0.0, range_offset_bins: float = 0.5, rotation: str = "cw",
-                 report: ImportReport | None = None, retime: bool = True) -> None:
+                 azimuth_offset_deg: float = RADIATE_AZIMUTH_OFFSET_DEG, range_offset_bins: float = 0.5,
+                 rotation: str = "cw", report: ImportReport | None = None, retime: bool = True) -> None:
         self.folder = Path(folder)
         polar = self.folder / "Navtech_Polar"
         if not polar.is_dir():
