@@ -83,7 +83,9 @@ def heading_known_at(t_ns: np.ndarray, truth_t_ns: np.ndarray, truth_known: np.n
 def rigid_align_2d(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(R 2x2, t 2) minimising sum |R src_i + t - dst_i|^2 (Kabsch/Umeyama, no scale)."""
     mu_s, mu_d = src_xy.mean(axis=0), dst_xy.mean(axis=0)
-    h = (dst_xy - mu_d).T @ (src_xy - mu_s)  # cross-covariance (up to 1/N)
+    # cross-covariance (up to 1/N); einsum's own loop, not BLAS, so the sum's order (and the
+    # last bits) never depends on how many BLAS threads a process has (a Dask worker has one)
+    h = np.einsum("ni,nj->ij", dst_xy - mu_d, src_xy - mu_s)
     u, _, vt = np.linalg.svd(h)
     d = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])  # a rotation, never a reflection
     r = u @ d @ vt
