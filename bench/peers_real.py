@@ -88,8 +88,9 @@ def run_mission(name: str, mission: Path, out: Path, kiss_k: list[int]) -> dict:
     d = out / "kissicp"
     s = _run("kiss_icp_navtech.yaml", mission, d)["extra"]
     ate, pct = metrics(d)
-    res["kissicp"] = {"ate_m": ate, "ate_pct": pct, "ms_per_turn": _ms(s, "points", "ms_per_turn")
-                      + _ms(s, "kissicp", "ms_per_turn"), "points_per_turn": s.get("kissicp", {}).get("points_per_turn"),
+    res["kissicp"] = {"ate_m": ate, "ate_pct": pct,
+                      "ms_per_turn": _ms(s, "points", "ms_per_turn") + _ms(s, "kissicp", "ms_per_turn"),
+                      "points_per_turn": s.get("kissicp", {}).get("points_per_turn"),
                       "poses": _poses(d / "kiss_icp_navtech.mcap", "kissicp/pose")}
     for k in kiss_k:
         dk = out / f"kissicp-k{k}"
