@@ -178,6 +178,7 @@ def main() -> int:
     ap.add_argument("--no-kiss", action="store_true", help="skip kiss-icp")
     ap.add_argument("--no-deskew", action="store_true", help="skip the deskewed second pass")
     ap.add_argument("--k", type=int, nargs="+", default=[1, 4], help="scan spacings registered (1 always)")
+    ap.add_argument("--load", default="", metavar="FILE.npz", help="reuse the registrations of --save")
     ap.add_argument("--save", default="", metavar="FILE.npz", help="write the per-pair registrations there")
     args = ap.parse_args()
     t_start = time.perf_counter()
@@ -195,41 +196,50 @@ def main() -> int:
         tq = t_ns + int(round(offset_s * 1e9))
         return np.column_stack([np.interp(tq, tg, xyt[:, 0]), np.interp(tq, tg, xyt[:, 1])])
 
+    if args.load:
+        saved = np.load(args.load)
+        steps_in = {(n.split("_k")[0], int(n.split("_k")[1])): saved[n] for n in saved.files if "_k" in n}
     # --- pass 1: k = 1..4, no deskew --------------------------------------------------------------
     steps: dict[tuple[str, int], np.ndarray] = {}
-    rots1 = np.zeros(idx.size - 1)
-    res1 = np.zeros((idx.size - 1, 4))
-    guess = 0.0
-    for m in range(idx.size - 1):
-        wide = 4.0 if m == 0 else 2.0
-        dx, dy, rot, r = register(polar[int(idx[m])], polar[int(idx[m + 1])], guess, wide, 1.0, DOC_BIN_M)
-        dx, dy, rot, r = register(polar[int(idx[m])], polar[int(idx[m + 1])], rot, 0.3, 0.15, DOC_BIN_M)
-        res1[m] = dx, dy, rot, r
-        rots1[m] = guess = rot
-    steps[("raw", 1)] = res1
-    for k in sorted(set(args.k) - {1}):
-        out = np.zeros((idx.size - k, 4))
-        for m in range(idx.size - k):
-            g = float(rots1[m:m + k].sum())
-            g = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 1.5, 0.5, DOC_BIN_M)[2]
-            out[m] = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 0.3, 0.15, DOC_BIN_M)
-        steps[("raw", k)] = out
-    print(f"phase correlation, pass 1: {time.perf_counter() - t_start:.0f} s")
-    # --- pass 2: deskewed with the constant twist of pass 1 (k = 1 and 4) ---------------------------
     dt1 = np.diff(ds.turn_t_ns[idx]) / 1e9
-    # the car's twist (the content moves opposite to the car): turn m's, the mean of the motions
-    # into and out of it
-    mot = -np.column_stack([res1[:, 0] / dt1, res1[:, 1] / dt1, res1[:, 2] / dt1])
-    tw = 0.5 * (np.vstack([mot[:1], mot]) + np.vstack([mot, mot[-1:]]))
-    if not args.no_deskew:
-        for k in (1, max(args.k)):
+    if args.load:
+        steps = steps_in
+        res1 = steps[("raw", 1)]
+        rots1 = res1[:, 2]
+    else:
+        rots1 = np.zeros(idx.size - 1)
+        res1 = np.zeros((idx.size - 1, 4))
+        guess = 0.0
+        for m in range(idx.size - 1):
+            wide = 4.0 if m == 0 else 2.0
+            dx, dy, rot, r = register(polar[int(idx[m])], polar[int(idx[m + 1])], guess, wide, 1.0, DOC_BIN_M)
+            dx, dy, rot, r = register(polar[int(idx[m])], polar[int(idx[m + 1])], rot, 0.3, 0.15, DOC_BIN_M)
+            res1[m] = dx, dy, rot, r
+            rots1[m] = guess = rot
+        steps[("raw", 1)] = res1
+        for k in sorted(set(args.k) - {1}):
             out = np.zeros((idx.size - k, 4))
             for m in range(idx.size - k):
-                g = float(steps[("raw", k)][m, 2])
-                out[m] = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 0.3, 0.15, DOC_BIN_M,
-                                  tuple(tw[m]), tuple(tw[m + k]), period_s)
-            steps[("deskew", k)] = out
-        print(f"phase correlation, pass 2 (deskewed): {time.perf_counter() - t_start:.0f} s")
+                g = float(rots1[m:m + k].sum())
+                g = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 1.5, 0.5, DOC_BIN_M)[2]
+                out[m] = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 0.3, 0.15, DOC_BIN_M)
+            steps[("raw", k)] = out
+        print(f"phase correlation, pass 1: {time.perf_counter() - t_start:.0f} s")
+        # --- pass 2: deskewed with the constant twist of pass 1 (k = 1 and 4) ---------------------------
+        dt1 = np.diff(ds.turn_t_ns[idx]) / 1e9
+        # the car's twist (the content moves opposite to the car): turn m's, the mean of the motions
+        # into and out of it
+        mot = -np.column_stack([res1[:, 0] / dt1, res1[:, 1] / dt1, res1[:, 2] / dt1])
+        tw = 0.5 * (np.vstack([mot[:1], mot]) + np.vstack([mot, mot[-1:]]))
+        if not args.no_deskew:
+            for k in (1, max(args.k)):
+                out = np.zeros((idx.size - k, 4))
+                for m in range(idx.size - k):
+                    g = float(steps[("raw", k)][m, 2])
+                    out[m] = register(polar[int(idx[m])], polar[int(idx[m + k])], g, 0.3, 0.15, DOC_BIN_M,
+                                      tuple(tw[m]), tuple(tw[m + k]), period_s)
+                steps[("deskew", k)] = out
+            print(f"phase correlation, pass 2 (deskewed): {time.perf_counter() - t_start:.0f} s")
 
     if args.save:
         np.savez(args.save, idx=idx, t_mid=t_mid, turn_t_ns=ds.turn_t_ns[idx], tg=tg, xyt=xyt,
@@ -284,6 +294,64 @@ def main() -> int:
               "(an end-to-end error of the GPS distance)")
 
     # --- kiss-icp on the strongest returns ----------------------------------------------------------
+    # --- clock offset from the speed profiles, per GPS segment -----------------------------------
+    # the radar's speed over k turns against the GPS's over the same interval read delta later;
+    # the GPS log is cut at its gaps (> 0.5 s): the offset is fitted on each piece apart
+    kmax = max(args.k)
+    reg = steps[("deskew", kmax)] if ("deskew", kmax) in steps else steps[("raw", kmax)]
+    st = np.hypot(reg[:, 0], reg[:, 1])
+    dtk = (t_mid[kmax:] - t_mid[:-kmax]) / 1e9
+    vr = st / dtk
+    expect = np.convolve(k1_med, np.ones(kmax), "valid")
+    okk = (np.abs(st - expect) < 0.15 * expect) & driving[: st.size] & (st > 0.8 * kmax)
+    deltas = np.arange(-1.0, 3.0 + 1e-9, 0.01)
+    vg_all = np.empty((deltas.size, st.size))
+    for j, dl in enumerate(deltas):
+        p = gps_at(t_mid, dl)
+        vg_all[j] = np.linalg.norm(p[kmax:] - p[:-kmax], axis=1) / dtk
+    gap_t = tg[1:][np.diff(tg) > 500_000_000]
+    seg = np.searchsorted(gap_t, t_mid[kmax:])  # the GPS piece of each pair's end
+    seg0 = np.searchsorted(gap_t, t_mid[:-kmax])
+    okk &= seg == seg0  # a pair across a GPS gap is in no piece
+
+    def fit(sel: np.ndarray) -> float:
+        cost = ((vr[sel][None, :] - vg_all[:, sel]) ** 2).sum(axis=1)
+        j = int(np.clip(np.argmin(cost), 1, deltas.size - 2))
+        y0, y1, y2 = cost[j - 1: j + 2]
+        den = y0 - 2 * y1 + y2
+        return float(deltas[j] + (np.clip(0.5 * (y0 - y2) / den, -1, 1) * 0.01 if den > 0 else 0.0))
+
+    print(f"\nGPS-radar clock offset (radar speed over {kmax} turns vs the GPS's read delta later; GPS log cut "
+          f"at its gaps > 0.5 s: {', '.join(f'{(g - tg[0]) / 1e9:.1f} s' for g in gap_t) or 'none'} after its "
+          "first fix):")
+    pieces = []
+    ratio_num = np.zeros(0)
+    ratio_den = np.zeros(0)
+    for g in np.unique(seg[okk]):
+        sel = okk & (seg == g)
+        if sel.sum() < 15:
+            continue
+        off = fit(sel)
+        boots = [fit(np.flatnonzero(sel)[b]) for b in block_bootstrap(int(sel.sum()), block, reps=300)]
+        lo_o, hi_o = (float(np.quantile(boots, q)) for q in (0.05, 0.95))
+        j = int(np.argmin(np.abs(deltas - off)))
+        rms0 = float(np.sqrt(np.mean((vr[sel] - vg_all[int(np.argmin(np.abs(deltas)))][sel]) ** 2)))
+        rms = float(np.sqrt(np.mean((vr[sel] - vg_all[j][sel]) ** 2)))
+        r_at = float(st[sel].sum() / (vg_all[j][sel] * dtk[sel]).sum())
+        r_0 = float(st[sel].sum() / (vg_all[int(np.argmin(np.abs(deltas)))][sel] * dtk[sel]).sum())
+        i0, i1 = idx[np.flatnonzero(sel)[[0, -1]]]
+        print(f"  scans {i0}-{i1 + kmax} ({int(sel.sum())} pairs): offset {off:+.2f} s (90 % CI [{lo_o:+.2f}, "
+              f"{hi_o:+.2f}]); speed residual {rms:.2f} m/s rms (at 0 s: {rms0:.2f}); ratio radar/GPS at it "
+              f"{r_at:.4f} (at 0 s: {r_0:.4f})")
+        pieces.append({"scans": [int(i0), int(i1 + kmax)], "offset_s": round(off, 2),
+                       "offset_ci90_s": [round(lo_o, 2), round(hi_o, 2)], "ratio": round(r_at, 4)})
+        ratio_num = np.concatenate([ratio_num, st[sel]])
+        ratio_den = np.concatenate([ratio_den, vg_all[j][sel] * dtk[sel]])
+    r_off, lo_off, hi_off = ratio_ci(ratio_num, ratio_den, block)
+    print(f"  ratio radar/GPS with each piece's offset ({kmax}-turn displacements): {r_off:.4f} "
+          f"[{lo_off:.4f}, {hi_off:.4f}]")
+
+    dist = float(np.linalg.norm(np.diff(p_mid[driving.nonzero()[0][0]:], axis=0), axis=1).sum())
     kiss = None
     if not args.no_kiss:
         kiss = run_kiss(ds, idx)
@@ -297,47 +365,22 @@ def main() -> int:
             hl = np.arange(sel.sum()) < sel.sum() // 2
             r1 = steps_k[hl].sum() / steps_g[hl].sum()
             r2 = steps_k[~hl].sum() / steps_g[~hl].sum()
+            # the same turns with each GPS piece read at its offset (pieces as above; between them, 0)
+            t_end = kiss[0][1:][sel]
+            shift = np.zeros(t_end.size, dtype=np.int64)
+            for pc in pieces:
+                inside = (t_end >= t_mid[pc["scans"][0] - idx[0]]) & (t_end <= t_mid[pc["scans"][1] - idx[0]])
+                shift[inside] = int(round(pc["offset_s"] * 1e9))
+            t_beg = kiss[0][:-1][sel]
+            steps_o = np.linalg.norm(gps_at(t_end + shift) - gps_at(t_beg + shift), axis=1)
+            keep = shift != 0
+            ro = steps_k[keep].sum() / steps_o[keep].sum()
+            summary["kiss-icp with offsets"] = (float(ro), np.nan, np.nan)
             print(f"\nkiss-icp (12 strongest per azimuth, deskew): path {steps_k.sum():.1f} m vs GPS "
                   f"{steps_g.sum():.1f} m over the same turns: ratio {ratio:.4f} [{lo:.4f}, {hi:.4f}]; "
-                  f"halves {r1:.4f} / {r2:.4f}")
+                  f"halves {r1:.4f} / {r2:.4f}; with each GPS piece at its offset ({int(keep.sum())} turns): "
+                  f"{ro:.4f}")
 
-    # --- clock offset from the speed profiles -----------------------------------------------------
-    rad1 = np.hypot(res1[:, 0], res1[:, 1]) / dt1
-    ok = np.abs(np.hypot(res1[:, 0], res1[:, 1]) - k1_med) < 0.15 * k1_med
-    deltas = np.arange(-1.0, 1.0 + 1e-9, 0.005)
-
-    def best_delta(sel: np.ndarray) -> tuple[float, float]:
-        cost = np.empty(deltas.size)
-        scale = np.empty(deltas.size)
-        for j, d in enumerate(deltas):
-            p = gps_at(t_mid, d)
-            vg = np.linalg.norm(np.diff(p, axis=0), axis=1) / dt1
-            s = float(rad1[sel] @ vg[sel] / (vg[sel] @ vg[sel]))
-            cost[j] = float(np.sum((rad1[sel] - s * vg[sel]) ** 2))
-            scale[j] = s
-        j = int(np.clip(np.argmin(cost), 1, deltas.size - 2))
-        y0, y1, y2 = cost[j - 1: j + 2]
-        den = y0 - 2 * y1 + y2
-        frac = 0.5 * (y0 - y2) / den if den > 0 else 0.0
-        return float(deltas[j] + np.clip(frac, -1, 1) * 0.005), float(scale[j])
-
-    sel_all = ok & (np.arange(n1) >= 0)
-    offset, speed_scale = best_delta(sel_all)
-    boots = []
-    for b in block_bootstrap(n1, block, reps=200):
-        sel = np.zeros(n1, dtype=bool)
-        sel[np.unique(b)] = True
-        boots.append(best_delta(sel & ok)[0])
-    off_lo, off_hi = (float(np.quantile(boots, q)) for q in (0.05, 0.95))
-    h1 = ok & (np.arange(n1) < half)
-    h2 = ok & (np.arange(n1) >= half)
-    o1, o2 = best_delta(h1)[0], best_delta(h2)[0]
-    print(f"\nGPS-radar clock offset (radar speed per turn vs GPS speed shifted, scale free): {offset:+.3f} s "
-          f"(90 % CI [{off_lo:+.3f}, {off_hi:+.3f}]; halves {o1:+.3f} / {o2:+.3f}); speed scale at it "
-          f"{speed_scale:.4f}")
-
-    kmax = max(args.k)
-    dist = float(np.linalg.norm(np.diff(p_mid[driving.nonzero()[0][0]:], axis=0), axis=1).sum())
     # --- expected sizes, from formulas ------------------------------------------------------------------
     v = float(np.median(speed[driving]))
     d = v * period_s
@@ -355,23 +398,30 @@ def main() -> int:
           f"at 10 m, {100 * d / (2 * np.pi * 30):.1f} % at 30 m, opposite on the two sides (net: the scene's "
           "imbalance; measured: raw vs deskew above)")
 
+    ratio, lo, hi = r_off, lo_off, hi_off
     main_key = f"deskew k={kmax} driving" if f"deskew k={kmax} driving" in summary else f"raw k={kmax} driving"
-    ratio, lo, hi = summary[main_key]
     gps_rel = wander / dist if np.isfinite(wander) else 0.0
     half_ci = math.hypot(0.5 * (hi - lo), 1.645 * gps_rel)
     bin_m = DOC_BIN_M / ratio
-    print(f"\nchosen: {main_key}: ratio {ratio:.4f}, 90 % CI with the GPS's end-to-end error ({gps_rel * 100:.2f} % "
-          f"of {dist:.0f} m): +-{half_ci:.4f} -> range per bin {bin_m:.5f} m "
-          f"(+-{bin_m * half_ci / ratio:.5f}); {time.perf_counter() - t_start:.0f} s in all")
+    print(f"\nchosen: {kmax}-turn registrations, each GPS piece at its offset: ratio {ratio:.4f}, 90 % CI with the "
+          f"GPS's end-to-end error ({gps_rel * 100:.2f} % of {dist:.0f} m): +-{half_ci:.4f} -> range per bin "
+          f"{bin_m:.5f} m (+-{bin_m * half_ci / ratio:.5f}); {time.perf_counter() - t_start:.0f} s in all")
     out = {"radiate_range_per_bin_m": round(bin_m, 5),
            "radiate_range_per_bin_ci90_m": round(bin_m * half_ci / ratio, 5),
-           "radar_gps_distance_ratio": round(ratio, 4), "radar_gps_ratio_ci90": [round(lo, 4), round(hi, 4)],
-           "ratio_first_half": round(summary.get(main_key.replace("driving", "first half"), (np.nan,))[0], 4),
-           "ratio_second_half": round(summary.get(main_key.replace("driving", "second half"), (np.nan,))[0], 4),
+           "radar_gps_distance_ratio": round(ratio, 4), "radar_gps_ratio_ci90": [round(ratio - half_ci, 4),
+                                                                                 round(ratio + half_ci, 4)],
+           "ratio_no_offset": round(summary[main_key][0], 4),
+           "ratio_no_offset_first_half": round(summary.get(main_key.replace("driving", "first half"), (np.nan,))[0], 4),
+           "ratio_no_offset_second_half": round(summary.get(main_key.replace("driving", "second half"),
+                                                            (np.nan,))[0], 4),
+           "ratio_no_offset_above_8mps": round(summary.get(main_key.replace("driving", "> 8 m/s"), (np.nan,))[0], 4),
            "ratio_k1_raw": round(summary["raw k=1 driving"][0], 4),
-           "ratio_kiss_icp": round(summary["kiss-icp driving"][0], 4) if "kiss-icp driving" in summary else None,
-           "gps_radar_offset_s": round(offset, 3), "gps_radar_offset_ci90_s": [round(off_lo, 3), round(off_hi, 3)],
-           "gps_wander_m": round(wander, 2), "driving_gps_m": round(dist, 1)}
+           "ratio_kiss_icp_no_offset": (round(summary["kiss-icp driving"][0], 4) if "kiss-icp driving" in summary
+                                        else None),
+           "ratio_kiss_icp": (round(summary["kiss-icp with offsets"][0], 4) if "kiss-icp with offsets" in summary
+                              else None),
+           "gps_radar_offset_s": pieces[0]["offset_s"] if len(pieces) == 1 else [pc["offset_s"] for pc in pieces],
+           "gps_pieces": pieces, "gps_wander_m": round(wander, 2), "driving_gps_m": round(dist, 1)}
     print(json.dumps(out))
     return 0
 
@@ -385,6 +435,7 @@ def run_kiss(ds, idx):
     except ImportError:
         print("kiss-icp not installed: skipped")
         return None
+    from impala_radar.datasets.common import counts_to_power
     from impala_radar.frontend.extractor import extract_peaks
 
     icp = KissICP(KISSConfig(data=DataConfig(max_range=100.0, min_range=BLANK_M, deskew=True),
@@ -392,7 +443,8 @@ def run_kiss(ds, idx):
     ts, xy = [], []
     for i in idx.tolist():
         scan = ds.read_scan(i)
-        rows, bins = extract_peaks(scan.power, ds.config, k=12, range_min_m=BLANK_M)
+        power = counts_to_power(scan.power, 0.5)  # linear power, as the import writes the beams
+        rows, bins = extract_peaks(power, ds.config, k=12, range_min_m=BLANK_M)
         r = ds.config.range_of_bin_m(bins)
         az = scan.azimuth_rad[rows]
         pts = np.column_stack([r * np.cos(az), r * np.sin(az), np.zeros(r.size)])
