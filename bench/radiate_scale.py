@@ -183,7 +183,7 @@ def main() -> int:
     args = ap.parse_args()
     t_start = time.perf_counter()
     report = ImportReport()
-    ds = RadiateDataset(args.folder, range_resolution_m=DOC_BIN_M, report=report)
+    ds = RadiateDataset(args.folder, range_resolution_m=DOC_BIN_M, report=report, gps_offset_s=0.0)  # as stamped
     tg, xyt, _ = ds.truth(report)
     period_s = ds.period_ns / 1e9
     idx = np.arange(args.first, min(args.last, len(ds.scan_paths) - 1) + 1)
@@ -309,10 +309,13 @@ def main() -> int:
     for j, dl in enumerate(deltas):
         p = gps_at(t_mid, dl)
         vg_all[j] = np.linalg.norm(p[kmax:] - p[:-kmax], axis=1) / dtk
+    # a pair whose GPS window, shifted by any trial delta, leaves the GPS log is not fitted (the
+    # interpolation would hold the last fix: a false stop)
+    okk &= (t_mid[kmax:] + int(deltas[-1] * 1e9) <= tg[-1]) & (t_mid[:-kmax] + int(deltas[0] * 1e9) >= tg[0])
     gap_t = tg[1:][np.diff(tg) > 500_000_000]
-    seg = np.searchsorted(gap_t, t_mid[kmax:])  # the GPS piece of each pair's end
-    seg0 = np.searchsorted(gap_t, t_mid[:-kmax])
-    okk &= seg == seg0  # a pair across a GPS gap is in no piece
+    n_ok = int(okk.sum())
+    part = np.zeros(st.size, dtype=int)
+    part[np.flatnonzero(okk)[n_ok // 2:]] = 1
 
     def fit(sel: np.ndarray) -> float:
         cost = ((vr[sel][None, :] - vg_all[:, sel]) ** 2).sum(axis=1)
@@ -321,16 +324,10 @@ def main() -> int:
         den = y0 - 2 * y1 + y2
         return float(deltas[j] + (np.clip(0.5 * (y0 - y2) / den, -1, 1) * 0.01 if den > 0 else 0.0))
 
-    print(f"\nGPS-radar clock offset (radar speed over {kmax} turns vs the GPS's read delta later; GPS log cut "
-          f"at its gaps > 0.5 s: {', '.join(f'{(g - tg[0]) / 1e9:.1f} s' for g in gap_t) or 'none'} after its "
-          "first fix):")
+    print(f"\nGPS-radar clock offset (radar speed over {kmax} turns vs the GPS's read delta later; GPS gaps > 0.5 s "
+          f"at {', '.join(f'{(g - tg[0]) / 1e9:.1f} s' for g in gap_t) or 'none'} after its first fix):")
     pieces = []
-    ratio_num = np.zeros(0)
-    ratio_den = np.zeros(0)
-    for g in np.unique(seg[okk]):
-        sel = okk & (seg == g)
-        if sel.sum() < 15:
-            continue
+    for name, sel in (("all", okk), ("first half", okk & (part == 0)), ("second half", okk & (part == 1))):
         off = fit(sel)
         boots = [fit(np.flatnonzero(sel)[b]) for b in block_bootstrap(int(sel.sum()), block, reps=300)]
         lo_o, hi_o = (float(np.quantile(boots, q)) for q in (0.05, 0.95))
@@ -340,15 +337,15 @@ def main() -> int:
         r_at = float(st[sel].sum() / (vg_all[j][sel] * dtk[sel]).sum())
         r_0 = float(st[sel].sum() / (vg_all[int(np.argmin(np.abs(deltas)))][sel] * dtk[sel]).sum())
         i0, i1 = idx[np.flatnonzero(sel)[[0, -1]]]
-        print(f"  scans {i0}-{i1 + kmax} ({int(sel.sum())} pairs): offset {off:+.2f} s (90 % CI [{lo_o:+.2f}, "
+        print(f"  {name}: scans {i0}-{i1 + kmax} ({int(sel.sum())} pairs): offset {off:+.2f} s (90 % CI [{lo_o:+.2f}, "
               f"{hi_o:+.2f}]); speed residual {rms:.2f} m/s rms (at 0 s: {rms0:.2f}); ratio radar/GPS at it "
               f"{r_at:.4f} (at 0 s: {r_0:.4f})")
-        pieces.append({"scans": [int(i0), int(i1 + kmax)], "offset_s": round(off, 2),
+        pieces.append({"part": name, "scans": [int(i0), int(i1 + kmax)], "offset_s": round(off, 2),
                        "offset_ci90_s": [round(lo_o, 2), round(hi_o, 2)], "ratio": round(r_at, 4)})
-        ratio_num = np.concatenate([ratio_num, st[sel]])
-        ratio_den = np.concatenate([ratio_den, vg_all[j][sel] * dtk[sel]])
+        if name == "all":
+            ratio_num, ratio_den, offset = st[sel], vg_all[j][sel] * dtk[sel], off
     r_off, lo_off, hi_off = ratio_ci(ratio_num, ratio_den, block)
-    print(f"  ratio radar/GPS with each piece's offset ({kmax}-turn displacements): {r_off:.4f} "
+    print(f"  ratio radar/GPS with the GPS read at {offset:+.2f} s ({kmax}-turn displacements): {r_off:.4f} "
           f"[{lo_off:.4f}, {hi_off:.4f}]")
 
     dist = float(np.linalg.norm(np.diff(p_mid[driving.nonzero()[0][0]:], axis=0), axis=1).sum())
@@ -365,20 +362,15 @@ def main() -> int:
             hl = np.arange(sel.sum()) < sel.sum() // 2
             r1 = steps_k[hl].sum() / steps_g[hl].sum()
             r2 = steps_k[~hl].sum() / steps_g[~hl].sum()
-            # the same turns with each GPS piece read at its offset (pieces as above; between them, 0)
-            t_end = kiss[0][1:][sel]
-            shift = np.zeros(t_end.size, dtype=np.int64)
-            for pc in pieces:
-                inside = (t_end >= t_mid[pc["scans"][0] - idx[0]]) & (t_end <= t_mid[pc["scans"][1] - idx[0]])
-                shift[inside] = int(round(pc["offset_s"] * 1e9))
-            t_beg = kiss[0][:-1][sel]
-            steps_o = np.linalg.norm(gps_at(t_end + shift) - gps_at(t_beg + shift), axis=1)
-            keep = shift != 0
+            # the same turns with the GPS read at the fitted offset
+            t_beg, t_end = kiss[0][:-1][sel], kiss[0][1:][sel]
+            keep = t_end + int(offset * 1e9) <= tg[-1]
+            steps_o = np.linalg.norm(gps_at(t_end, offset) - gps_at(t_beg, offset), axis=1)
             ro = steps_k[keep].sum() / steps_o[keep].sum()
             summary["kiss-icp with offsets"] = (float(ro), np.nan, np.nan)
             print(f"\nkiss-icp (12 strongest per azimuth, deskew): path {steps_k.sum():.1f} m vs GPS "
                   f"{steps_g.sum():.1f} m over the same turns: ratio {ratio:.4f} [{lo:.4f}, {hi:.4f}]; "
-                  f"halves {r1:.4f} / {r2:.4f}; with each GPS piece at its offset ({int(keep.sum())} turns): "
+                  f"halves {r1:.4f} / {r2:.4f}; with the GPS at {offset:+.2f} s ({int(keep.sum())} turns): "
                   f"{ro:.4f}")
 
     # --- expected sizes, from formulas ------------------------------------------------------------------
@@ -403,9 +395,9 @@ def main() -> int:
     gps_rel = wander / dist if np.isfinite(wander) else 0.0
     half_ci = math.hypot(0.5 * (hi - lo), 1.645 * gps_rel)
     bin_m = DOC_BIN_M / ratio
-    print(f"\nchosen: {kmax}-turn registrations, each GPS piece at its offset: ratio {ratio:.4f}, 90 % CI with the "
-          f"GPS's end-to-end error ({gps_rel * 100:.2f} % of {dist:.0f} m): +-{half_ci:.4f} -> range per bin "
-          f"{bin_m:.5f} m (+-{bin_m * half_ci / ratio:.5f}); {time.perf_counter() - t_start:.0f} s in all")
+    print(f"\nchosen: {kmax}-turn registrations, the GPS read at the fitted offset: ratio {ratio:.4f}, "
+          f"90 % CI with the GPS's end-to-end error ({gps_rel * 100:.2f} % of {dist:.0f} m): +-{half_ci:.4f} "
+          f"-> range per bin {bin_m:.5f} m (+-{bin_m * half_ci / ratio:.5f})")
     out = {"radiate_range_per_bin_m": round(bin_m, 5),
            "radiate_range_per_bin_ci90_m": round(bin_m * half_ci / ratio, 5),
            "radar_gps_distance_ratio": round(ratio, 4), "radar_gps_ratio_ci90": [round(ratio - half_ci, 4),
@@ -420,7 +412,7 @@ def main() -> int:
                                         else None),
            "ratio_kiss_icp": (round(summary["kiss-icp with offsets"][0], 4) if "kiss-icp with offsets" in summary
                               else None),
-           "gps_radar_offset_s": pieces[0]["offset_s"] if len(pieces) == 1 else [pc["offset_s"] for pc in pieces],
+           "gps_radar_offset_s": pieces[0]["offset_s"], "gps_radar_offset_ci90_s": pieces[0]["offset_ci90_s"],
            "gps_pieces": pieces, "gps_wander_m": round(wander, 2), "driving_gps_m": round(dist, 1)}
     print(json.dumps(out))
     return 0
