@@ -57,7 +57,8 @@
   correlation over 4 turns, independent of any clock) matches the GPS's read 1.55 s later (90 %
   CI 1.50-1.58 s; 1.56 s on the first half of the drive, 1.51 s on the second, across the GPS
   log's gaps; residual 0.16 m/s rms against 0.86 m/s unshifted); unshifted, the truth lags the
-  radar by ~15 m along the track at 10 m/s. Another sequence may have another offset: measure it
+  radar by ~15 m along the track at 10 m/s (kiss-icp's ATE over the head's 320 m of driving:
+  5.6 m against the GPS as stamped, 1.2 m shifted). Another sequence may have another offset: measure it
   with ``bench/radiate_scale.py``.
 """
 
