@@ -90,6 +90,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keep-frame-stamps", action="store_true",
                    help="radiate: beam times from the frame stamps as written (default: frames stamped late, "
                    "when the logger fell behind, are put back on the radar's turn clock)")
+    p.add_argument("--gps-offset-s", type=float, default=None, metavar="S",
+                   help="radiate: the GPS's stamps are this late against the radar's clock, a fix stamped t is "
+                   "taken at t - S (default 1.55, measured on the Edinburgh sequence; 0: as stamped)")
     p.add_argument("--skip-bad-scans", action="store_true",
                    help="skip unreadable scans (counted and reported with their reason) instead of failing")
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
@@ -139,6 +142,13 @@ def _import(args: argparse.Namespace) -> int:
         if args.format != "radiate":
             raise CommandError("--keep-frame-stamps: radiate only (the other formats stamp every row)", EXIT_USAGE)
         params["retime"] = False
+    if args.gps_offset_s is not None:
+        if args.format != "radiate":
+            raise CommandError("--gps-offset-s: radiate only (the other formats' truth is on the sensor's clock)",
+                               EXIT_USAGE)
+        if not abs(args.gps_offset_s) <= 60.0:
+            raise CommandError(f"--gps-offset-s {args.gps_offset_s}: expected within +-60 s", EXIT_USAGE)
+        params["gps_offset_s"] = args.gps_offset_s
     if not args.db_per_count > 0:
         raise CommandError(f"--db-per-count {args.db_per_count}: must be > 0", EXIT_USAGE)
     params["db_per_count"] = args.db_per_count

@@ -18,7 +18,7 @@ from impala_flow import Output, Param, Source
 from impala_flow.msgs import ObjectStates, Pose2D, RadarBeam, Speed, YawRate
 
 from .datasets.oxford import OXFORD_AZIMUTH_OFFSET_DEG, OXFORD_RANGE_RESOLUTION_M
-from .datasets.radiate import RADIATE_AZIMUTH_OFFSET_DEG
+from .datasets.radiate import RADIATE_AZIMUTH_OFFSET_DEG, RADIATE_GPS_OFFSET_S
 
 __all__ = ["RadarDriver", "OxfordScans", "BoreasScans", "RadiateScans", "Simulator", "SIM_TOPICS",
            "DATASET_TOPICS", "OXFORD_TOPICS", "DATASET_SOURCES"]
@@ -143,10 +143,13 @@ class RadiateScans(_NavtechFolderScans):
                      "(cw: checked on the data)")
     retime = Param(bool, default=True, doc="put frames stamped late (the logger fell behind) back on the radar's "
                    "turn clock; False: beam times from the frame stamps as written")
+    gps_offset_s = Param(float, default=RADIATE_GPS_OFFSET_S, ge=-60.0, le=60.0,
+                         doc="GPS fixes stamped this late against the radar's clock (measured on the Edinburgh "
+                         "sequence): a fix stamped t is taken at t - offset")
 
     def _options(self) -> dict[str, Any]:
         return {**super()._options(), "range_resolution_m": self.range_resolution_m, "rotation": self.rotation,
-                "retime": self.retime}
+                "retime": self.retime, "gps_offset_s": self.gps_offset_s}
 
 
 #: start of simulated missions unless told otherwise (Foxglove's timeline shows real dates)

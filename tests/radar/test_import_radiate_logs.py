@@ -26,7 +26,8 @@ T0_NS = 1_549_986_548_010_563_645  # a RADIATE time with a leading zero in its n
 
 
 def _import(folder, out, *extra):
-    assert main(["import", "radiate", str(folder), "-o", str(out), "--no-progress", *extra]) == 0
+    # the synthetic GPS files are written on the radar's clock: no offset (the real one's: its own test)
+    assert main(["import", "radiate", str(folder), "-o", str(out), "--no-progress", "--gps-offset-s", "0", *extra]) == 0
     with MissionReader(out) as r:
         beams = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
         truth = [(m.t_ns, m.data) for m in r.messages(["truth/pose"])] if "truth/pose" in r.topics else []
@@ -246,7 +247,8 @@ def test_real_head_reads_unpatched_with_its_counts():
     assert "frame 000131" in report.facts["late frames"]
     assert np.all(np.diff(ds.turn_t_ns) > 0.9 * ds.period_ns)
     # truth: every unique fix within the scans, in time order
-    ug = np.unique(tg)
+    ug = np.unique(tg) - ds.gps_offset_ns  # the fixes on the radar's clock (RADIATE_GPS_OFFSET_S)
+    assert ds.gps_offset_ns == 1_550_000_000 and report.facts["GPS clock"].startswith("fixes taken +1.550 s before")
     assert t.tolist() == ug[(ug >= ds.turn_t_ns[0]) & (ug <= ds.turn_t_ns[-1] + ds.period_ns)].tolist()
     known = cov[:, 2, 2] < HEADING_UNKNOWN_VAR_RAD2
     ts = (t - t[0]) / 1e9

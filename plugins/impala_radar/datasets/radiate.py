@@ -32,6 +32,16 @@
   turn period: a turn never spreads over a gap. Gaps (an interval over 1.5 P: round(dt / P) - 1
   turns missing) are reported, never an error.
 * **Range.** Bin k at ``(k + range_offset_bins) resolution`` (0.5: bin centres, as Navtech).
+  The documented 0.17361 m (100 m / 576) is kept: measured on the Edinburgh head against the
+  GPS (``bench/radiate_scale.py``), the radar's displacement over 4 turns (phase correlation of
+  deskewed Cartesian images) over the GPS's over the same turns is 0.9994 +- 0.015 (90 %, the
+  GPS's error over the 320 m drive included; 1.0009 and 0.9979 on its halves; kiss-icp on the
+  strongest returns: 0.9991), i.e. 0.1737 +- 0.0027 m per bin, with the GPS on the radar's
+  clock (``gps_offset_s`` below). With the GPS as stamped, and registering raw consecutive
+  turns, the radar looks 3-5 % longer: the clock offset while accelerating (1.06 on the first
+  half, 1.00 above 8 m/s) and the motion within a turn (+0.9 %, removed by the deskew). A
+  sawtooth's Doppler range shift (V f0 / (dF Fm), 4.8-5.5 cm per m/s) is the same in both
+  turns of a pair: a step changes only with the speed (< 0.1 % of a drive).
 * **Truth.** ``GPS_IMU_Twist/<frame>.txt`` (line 1: ``latitude, longitude, altitude``; lines 2-4:
   the position covariance, East-North-Up as ROS's NavSatFix; line 5: the IMU orientation
   quaternion ``x, y, z, w``) with times in ``GPS_IMU_Twist.txt``. Every fix is written twice
@@ -52,7 +62,15 @@
   IMU quaternion (taken as ENU yaw) is not the truth: on the head it differs from the course
   by -7.7 deg on average while driving (std 2.5 deg; -5.7 deg on the full drive per issue 23);
   the import block says by how much on each import. A missing folder or fixes outside the
-  scans' times give a note, not an error.
+  scans' times give a note, not an error. **The GPS stamps are late against the radar's
+  clock**: a fix stamped t is taken at ``t - gps_offset_s`` (default
+  :data:`RADIATE_GPS_OFFSET_S`, 1.55 s). On the Edinburgh head the radar's speed (phase
+  correlation over 4 turns, independent of any clock) matches the GPS's read 1.55 s later (90 %
+  CI 1.50-1.58 s; 1.56 s on the first half of the drive, 1.51 s on the second, across the GPS
+  log's gaps; residual 0.16 m/s rms against 0.86 m/s unshifted); unshifted, the truth lags the
+  radar by ~15 m along the track at 10 m/s (kiss-icp's ATE over the head's 320 m of driving:
+  5.6 m against the GPS as stamped, 1.2 m shifted). Another sequence may have another offset: measure it
+  with ``bench/radiate_scale.py``.
 """
 
 from __future__ import annotations
@@ -78,10 +96,17 @@ from .common import (
 )
 from .navtech_png import check_grey8, decode_grey8, png_header
 
-__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RadiateDataset", "FrameIndex",
-           "read_frame_times", "read_gps_imu", "geodetic_to_en", "turn_clock", "course_over_ground",
+__all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RADIATE_GPS_OFFSET_S", "RadiateDataset",
+           "FrameIndex", "read_frame_times", "read_gps_imu", "geodetic_to_en", "turn_clock", "course_over_ground",
            "COURSE_MIN_SPEED_MPS", "COURSE_BASELINE_S", "GPS_VELOCITY_STD_MPS", "COURSE_STD_FLOOR_DEG"]
 
+#: GPS fixes are stamped this late against the radar's turn clock: a fix stamped t is the
+#: position at t - RADIATE_GPS_OFFSET_S. Measured on the Edinburgh head (bench/radiate_scale.py:
+#: the radar's speed over 4 turns against the GPS's, 1.55 s, 90 % CI 1.50-1.58 s, halves 1.56 and
+#: 1.51 s; speed residual 0.16 m/s rms against 0.86 m/s unshifted). ``gps_offset_s`` overrides.
+RADIATE_GPS_OFFSET_S = 1.55
+#: The dataset's documentation (100 m / 576 bins); measured against the GPS on the Edinburgh
+#: head: 0.1737 +- 0.0027 m (90 %; module doc, bench/radiate_scale.py): kept.
 RADIATE_RANGE_RESOLUTION_M = 0.17361
 #: constant added to every azimuth (CCW positive): the radar's yaw, measured (see the module doc)
 RADIATE_AZIMUTH_OFFSET_DEG = -2.3
@@ -286,8 +311,13 @@ class RadiateDataset(NavtechDataset):
 
     def __init__(self, folder: str | Path, range_resolution_m: float = RADIATE_RANGE_RESOLUTION_M,
                  azimuth_offset_deg: float = RADIATE_AZIMUTH_OFFSET_DEG, range_offset_bins: float = 0.5,
-                 rotation: str = "cw", report: ImportReport | None = None, retime: bool = True) -> None:
+                 rotation: str = "cw", report: ImportReport | None = None, retime: bool = True,
+                 gps_offset_s: float = RADIATE_GPS_OFFSET_S) -> None:
         self.folder = Path(folder)
+        if not math.isfinite(gps_offset_s) or abs(gps_offset_s) > 60.0:
+            raise DatasetError(f"{self.folder}: GPS clock offset {gps_offset_s} s: expected a finite value within "
+                               "+-60 s")
+        self.gps_offset_ns = int(round(gps_offset_s * 1e9))
         polar = self.folder / "Navtech_Polar"
         if not polar.is_dir():
             raise DatasetError(f"{self.folder}: no Navtech_Polar/ folder of RADIATE polar scans")
@@ -409,6 +439,10 @@ class RadiateDataset(NavtechDataset):
         report.fact("repeats", f"GPS: {int(same.sum())} fix(es) written twice merged; {int(stale.sum())} stale "
                     f"(a new time with the previous position) merged; {int(other.sum())} same time with another "
                     "fix (first kept)")
+        t_ns = t_ns - self.gps_offset_ns  # on the radar's clock
+        report.fact("GPS clock", f"fixes taken {self.gps_offset_ns / 1e9:+.3f} s before their stamps (the GPS's "
+                    "stamps are late against the radar's turn clock; measured on the Edinburgh sequence; "
+                    "--gps-offset-s)")
         dt = np.diff(t_ns)
         gps_period = float(np.median(dt)) if dt.size else 50e6
         report.fact("GPS gaps", gap_summary(t_ns, gps_period, None, "fix", "fixes"))
