@@ -70,6 +70,7 @@ class DistortionConfig:
     search_gate_m: float = 0.6
     accept_ratio: float = 0.85  # the prediction's result is kept above this share of the recent coincidences
     lost_ratio: float = 0.6  # best coincidences near the prediction below this share of the recent ones: search all
+    late_ratio: float = 1.25  # a gap is read as a late time stamp when that explains this many times the coincidences
 
 
 @dataclass
@@ -82,6 +83,7 @@ class TurnResult:
     measured: VelocityEstimate | None
     degraded: bool
     searched: bool
+    clock_offset_s: float = 0.0  # time stamp of the turn minus its time on the turn clock (>= 0: stamped late)
 
 
 class DistortionCore:
@@ -98,6 +100,12 @@ class DistortionCore:
         self.recent_scores: list[int] = []
         self.turns = self.degraded = self.searches = self.wide_searches = self.resets = 0
         self.seconds = 0.0
+        # turn clock: a turn's time stamp may come late (a logger that stalls, then catches up)
+        self.clock_offset_s = 0.0  # stamp minus turn-clock time of the newest turn
+        self.prev_clock_s: float | None = None  # turn-clock time of the previous turn's first beam
+        self.intervals: list[float] = []  # recent stamp intervals of one turn (rotation period)
+        self.late_stamps = self.missing_turns = 0
+        self.beam_times_s = np.zeros(0)  # the newest turn's beams on the turn clock
 
     def _sigma_r(self, config) -> float:
         return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
@@ -129,14 +137,69 @@ class DistortionCore:
         finally:
             self.seconds += time.perf_counter() - t0
 
+    def _period(self, config) -> float:
+        """Rotation period: the median of the recent one-turn stamp intervals (the configured
+        rate until there are 8)."""
+        if len(self.intervals) >= 8:
+            return float(np.median(self.intervals))
+        return 1.0 / config.rotation_hz
+
+    def _clock(self, prev: Echoes | None, echoes: Echoes, t_stamp: float, beta: float, config) -> float:
+        """Offset (stamp minus turn clock) of the new turn. The radar turns at a steady rate;
+        its time stamps may come late: a logger stalls, then catches up with intervals shorter
+        than a turn (RADIATE: stalls of up to 1.6 s). A gap of n turns between stamps is either
+        n - 1 missing turns or a late stamp: the hypothesis kept is the one whose times make
+        the two turns' echoes coincide at the filter's prediction (at rest they all do, and the
+        stamps are kept). After a late stamp, the clock runs a turn per turn until the stamps
+        have caught up."""
+        offset = self.clock_offset_s
+        if prev is None or self.prev_clock_s is None:
+            return 0.0
+        period = self._period(config)
+        gap = t_stamp - offset - self.prev_clock_s  # interval on the turn clock if the offset holds
+        n = max(1, int(round(gap / period)))
+        if n == 1:
+            if offset == 0.0 and 0.5 * period < gap < 1.5 * period:
+                self.intervals = (self.intervals + [gap])[-64:]
+            return max(0.0, offset - max(period - gap, 0.0))  # catching up: a turn per turn
+        if self.kf is not None:
+            scores = []
+            x = self.kf.x
+            for m in range(1, n + 1):
+                dt_m = m * period if m < n else gap
+                shift = offset + gap - dt_m
+                t_m = self.prev_clock_s + dt_m
+                shifted = Echoes(echoes.t_s - shift, echoes.azimuth_rad, echoes.range_m, echoes.ramp, echoes.snr_db)
+                dt_kf = t_m - self.t_kf
+                scores.append(self._score(prev, shifted, t_m, beta, float(x[0] + x[1] * dt_kf), float(x[2]),
+                                          float(x[1])))
+            m = int(np.argmax(scores[:-1])) + 1
+            if scores[m - 1] >= self.cfg.late_ratio * scores[-1] + 3:
+                self.late_stamps += 1
+                return offset + gap - m * period
+        self.missing_turns += n - 1
+        return offset
+
     def _step(self, t_s, azimuth_rad, up, down, config) -> TurnResult | None:  # type: ignore[no-untyped-def]
         c = self.cfg
+        t_s = np.asarray(t_s, float)
+        t0, span = float(np.min(t_s)), float(np.ptp(t_s))
+        full = self._period(config) * (len(t_s) - 1) / config.beams_per_turn
+        if 0.0 < span < 0.98 * full:
+            # a turn lasts a rotation: beams squeezed between two stamps (a log catching up with
+            # itself, its beams spread up to the next stamp on import) are spread over one
+            t_s = t0 + (t_s - t0) * (full / span)
         echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
-        t_ref = float(np.min(t_s))
-        prev, self.prev = self.prev, echoes
+        beta = doppler_beta_s(config) if c.doppler else 0.0
+        prev = self.prev
+        self.clock_offset_s = self._clock(prev, echoes, float(np.min(t_s)), beta, config)
+        if self.clock_offset_s:
+            echoes.t_s = echoes.t_s - self.clock_offset_s
+        t_ref = t0 - self.clock_offset_s
+        self.beam_times_s = t_s - self.clock_offset_s
+        self.prev, self.prev_clock_s = echoes, t_ref
         if prev is None:
             return None
-        beta = doppler_beta_s(config) if c.doppler else 0.0
         sr = self._sigma_r(config)
         kw = dict(beta_s=beta, gate_m=c.gate_m, sigma_range_m=sr, sigma_azimuth_rad=c.sigma_azimuth_rad,
                   min_pairs=c.min_pairs)
@@ -179,7 +242,8 @@ class DistortionCore:
         elif self.kf is None:
             self.degraded += 1
             self.turns += 1
-            return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched)
+            return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched,
+                              self.clock_offset_s)
         self.degraded += degraded
         v, w = float(self.kf.x[0]), float(self.kf.x[2])
         P = self.kf.P
@@ -190,7 +254,7 @@ class DistortionCore:
             self.pose = (x, y, math.remainder(th, 2.0 * math.pi))
         self.last_vw, self.prev_t0 = (v, w), t_ref
         self.turns += 1
-        return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched)
+        return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched, self.clock_offset_s)
 
     def _nis(self, est: VelocityEstimate) -> float:
         kf = self.kf
@@ -326,10 +390,11 @@ class DistortionOdometry(Component):
         down = np.stack([b[1].down for b in beams]) if config.doppler and beams[0][1].down.size else None
         r = self.core.step(t_s, az, up, down, config)
         if r is not None and math.isfinite(r.v_mps):
-            self._emit(int(t_ns.min()), r)
+            # stamped on the turn clock (earlier than the turn's stamp when that came late)
+            self._emit(int(t_ns.min()) - int(round(r.clock_offset_s * 1e9)), r)
             if self._map is not None and self._last_turn is not None:
                 self._add_to_map(r)
-        self._last_turn = (t_s, az, up, config)
+        self._last_turn = (self.core.beam_times_s, az, up, config)
         if r is not None and math.isfinite(r.v_mps):
             self._last_result = r
 
@@ -385,6 +450,8 @@ class DistortionOdometry(Component):
             "searches": core.searches,
             "wide_searches": core.wide_searches,
             "filter_resets": core.resets,
+            "late_stamps": core.late_stamps,
+            "missing_turns": core.missing_turns,
             "partial_turns": self.partial_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
