@@ -70,6 +70,9 @@ class DistortionConfig:
     search_gate_m: float = 0.6
     accept_ratio: float = 0.85  # the prediction's result is kept above this share of the recent coincidences
     lost_ratio: float = 0.6  # best coincidences near the prediction below this share of the recent ones: search all
+    yaw_accel: bool = True  # the yaw rate's change over the last two turns in the motion model of the next pair
+    max_yaw_accel_radps2: float = math.radians(20.0)
+    yaw_accel_window_s: float = 0.75
     late_ratio: float = 1.25  # a gap is read as a late time stamp when that explains this many times the coincidences
 
 
@@ -106,6 +109,8 @@ class DistortionCore:
         self.intervals: list[float] = []  # recent stamp intervals of one turn (rotation period)
         self.late_stamps = self.missing_turns = 0
         self.beam_times_s = np.zeros(0)  # the newest turn's beams on the turn clock
+        self.yaw_acc = 0.0  # rad/s^2, from the last two turns' yaw rates
+        self.w_hist: list[tuple[float, float]] = []  # (turn-clock time, filtered yaw rate) of the last turns
 
     def _sigma_r(self, config) -> float:
         return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
@@ -208,23 +213,25 @@ class DistortionCore:
             self._predict(t_ref)
             around = (float(self.kf.x[0]), float(self.kf.x[2]))
         acc = 0.0 if self.kf is None else float(self.kf.x[1])
+        yacc = self.yaw_acc if c.yaw_accel else 0.0
+        kw["yaw_accel_radps2"] = yacc
         est, searched = None, False
         if around is not None and self.recent_scores:
             # the prediction first: kept when its result coincides as well as the last turns did
             est = estimate_velocity(prev, echoes, around[0], around[1], t_ref, accel_mps2=acc, **kw)
             if est is not None:
-                score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc)
+                score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc, yacc)
                 if score >= c.accept_ratio * float(np.median(self.recent_scores)):
                     self.recent_scores = (self.recent_scores + [score])[-8:]
                 else:
                     est = None
         if est is None:
             searched = True
-            start = self._search(prev, echoes, t_ref, beta, around, acc)
+            start = self._search(prev, echoes, t_ref, beta, around, acc, yacc)
             if around is not None and (start is None or (self.recent_scores and start[2] < c.lost_ratio * float(
                     np.median(self.recent_scores)))):
                 # few coincidences near the prediction: the filter may be lost; search everything
-                wide = self._search(prev, echoes, t_ref, beta, None, acc)
+                wide = self._search(prev, echoes, t_ref, beta, None, acc, yacc)
                 if wide is not None and (start is None or wide[2] > start[2]):
                     start = wide
                     self.wide_searches += 1
@@ -252,6 +259,15 @@ class DistortionCore:
             vm, wm = 0.5 * (self.last_vw[0] + v), 0.5 * (self.last_vw[1] + w)
             x, y, th = arc_step(*self.pose, vm, wm, t_ref - self.prev_t0)
             self.pose = (x, y, math.remainder(th, 2.0 * math.pi))
+        # yaw acceleration for the next pair's motion model: slope of the yaw rates over the last
+        # turns (at least two, yaw_accel_window_s), none at walking pace (a car turns as it rolls)
+        hist = (self.w_hist + [(t_ref, w)])[-8:]
+        self.w_hist = [h for h in hist[:-2] if t_ref - h[0] <= c.yaw_accel_window_s] + hist[-2:]
+        self.yaw_acc = 0.0
+        if abs(v) >= 1.0 and len(self.w_hist) >= 2:
+            tw, ww = np.array(self.w_hist).T
+            lim = c.max_yaw_accel_radps2
+            self.yaw_acc = float(np.clip(np.polyfit(tw - tw[-1], ww, 1)[0], -lim, lim))
         self.last_vw, self.prev_t0 = (v, w), t_ref
         self.turns += 1
         return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched, self.clock_offset_s)
@@ -272,7 +288,7 @@ class DistortionCore:
         self.kf.update(np.array([est.v_mps, est.w_radps]), R=est.cov)
 
     def _search(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float,
-                around: tuple[float, float] | None, acc: float) -> tuple[float, float, int] | None:
+                around: tuple[float, float] | None, acc: float, yacc: float = 0.0) -> tuple[float, float, int] | None:
         c = self.cfg
         v_lo, v_hi = -c.max_reverse_mps, c.max_speed_mps
         w_lo, w_hi = -c.max_yaw_rate_radps, c.max_yaw_rate_radps
@@ -286,10 +302,12 @@ class DistortionCore:
             w_lo, w_hi = max(w_lo, cw - sw), min(w_hi, cw + sw)
             prior = (around[0], around[1], np.array([[P[0, 0], P[0, 2]], [P[2, 0], P[2, 2]]]))
         return search_velocity(ea, eb, t_ref, beta, (v_lo, v_hi), (w_lo, w_hi), c.search_v_step,
-                               c.search_w_step, c.search_gate_m, prior=prior, accel_mps2=acc)
+                               c.search_w_step, c.search_gate_m, prior=prior, accel_mps2=acc, yaw_accel_radps2=yacc)
 
-    def _score(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, v: float, w: float, acc: float) -> int:
-        r = search_velocity(ea, eb, t_ref, beta, (v, v), (w, w), 1.0, 1.0, self.cfg.search_gate_m, accel_mps2=acc)
+    def _score(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, v: float, w: float, acc: float,
+               yacc: float = 0.0) -> int:
+        r = search_velocity(ea, eb, t_ref, beta, (v, v), (w, w), 1.0, 1.0, self.cfg.search_gate_m, accel_mps2=acc,
+                            yaw_accel_radps2=yacc)
         return 0 if r is None else r[2]
 
     def beam_poses(self, t_s: np.ndarray, t_from: float, pose_from: tuple[float, float, float],
