@@ -2,10 +2,15 @@
 
 Per turn (:class:`DistortionCore`):
 
+0. the turn's time on a turn clock (the radar turns steadily; a log's stamps may come late,
+   then catch up): a gap of n turns is n - 1 missing turns or a late stamp, whichever makes
+   the echoes coincide at the prediction; beams squeezed between two stamps are spread over
+   one rotation;
 1. echoes of the turn (:func:`~.distortion.extract_echoes`, both ramps of a Doppler radar);
 2. the Kalman filter over (V, a, w) (filterpy; a the longitudinal acceleration, so the
    braking into a roundabout is predicted) predicts the velocities at the boundary between
-   the previous turn and this one;
+   the previous turn and this one; the yaw rate's slope over the last turns is the yaw
+   acceleration of the pair's motion model (the rate changes over two turns in a roundabout);
 3. the two turns' echoes are made to coincide from that prediction
    (:func:`~.distortion.estimate_velocity`); the result is kept when its coincidence score
    (strongest echoes, range-compensated) reaches ``accept_ratio`` of the last turns'. Else a
@@ -326,7 +331,8 @@ class DistortionOdometry(Component):
     (integrated, frame ``odom``), ``degraded`` (1 when the turn gave no measurement: the
     covariance grows) and every ``map_period_s`` the map of the echoes' power placed by the
     odometry's own poses (Fig. 16). Outputs are stamped at the first beam of the newer of the
-    two turns compared. Never a NaN: before its first measurement it emits nothing.
+    two turns compared, on the turn clock (earlier than the turn's stamp when that came late).
+    Never a NaN: before its first measurement it emits nothing.
     """
 
     beams = Input(RadarBeam, doc="radar beams, each stamped at its own time")
