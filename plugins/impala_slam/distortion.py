@@ -182,6 +182,7 @@ class VelocityEstimate:
     cov: np.ndarray  # 2x2 over (v, w)
     pairs: int  # associated echo pairs kept (inliers)
     rms_m: float  # RMS distance of the inlier pairs
+    yaw_accel_radps2: float = 0.0  # the motion model's yaw acceleration (estimated or given)
 
 
 def _residuals(params, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float,
@@ -230,28 +231,39 @@ def associate(ea: Echoes, eb: Echoes, v: float, w: float, t_ref: float, beta: fl
 def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: float, *, beta_s: float = 0.0,
                       gate_m: float = 2.0, sigma_range_m: float = 0.2, sigma_azimuth_rad: float = 0.005,
                       iterations: int = 3, min_pairs: int = 8, accel_mps2: float = 0.0,
-                      yaw_accel_radps2: float = 0.0) -> VelocityEstimate | None:
+                      yaw_accel_radps2: float = 0.0, yaw_accel_std_radps2: float = 0.0) -> VelocityEstimate | None:
     """(V, w) making turn ``ea``'s echoes coincide with turn ``eb``'s, from (v0, w0).
 
     Associate (mutual nearest neighbours within a gate that shrinks from ``gate_m``), then
     minimise the radial/tangential residuals scaled by their uncertainties with a robust
     Cauchy loss (scipy.optimize.least_squares), a few times. The covariance is the Gauss-
     Newton one at the solution, scaled by the inliers' residual variance (at least 1).
-    None when fewer than ``min_pairs`` pairs associate."""
+    None when fewer than ``min_pairs`` pairs associate. With ``yaw_accel_std_radps2`` the yaw
+    acceleration is estimated too, ``yaw_accel_radps2`` being its prior (mean, this std)."""
     v, w = float(v0), float(w0)
+    alpha = float(yaw_accel_radps2)
+    joint = yaw_accel_std_radps2 > 0
     res = None
     for it in range(iterations):
         gate = gate_m * (0.5 ** it) if it < iterations - 1 else max(gate_m * 0.25, 3.0 * sigma_range_m)
         gate = max(gate, 3.0 * sigma_range_m)
-        ia, ib = associate(ea, eb, v, w, t_ref_s, beta_s, gate, accel_mps2, yaw_accel_radps2)
+        ia, ib = associate(ea, eb, v, w, t_ref_s, beta_s, gate, accel_mps2, alpha)
         if len(ia) < min_pairs:
             return None
         a, b = _subset(ea, ia), _subset(eb, ib)
-        res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
-                            args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2,
-                                  yaw_accel_radps2))
-        v, w = (float(x) for x in res.x)
-    r = res.fun
+        if joint:
+            def fun(p, a=a, b=b):
+                return np.concatenate([_residuals(p[:2], a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad,
+                                                  accel_mps2, p[2]),
+                                       [(p[2] - yaw_accel_radps2) / yaw_accel_std_radps2]])
+            res = least_squares(fun, [v, w, alpha], loss="cauchy", f_scale=2.0, method="trf",
+                                x_scale=[1.0, 0.05, 0.1])
+            v, w, alpha = (float(x) for x in res.x)
+        else:
+            res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
+                                args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2, alpha))
+            v, w = (float(x) for x in res.x)
+    r = res.fun[:-1] if joint else res.fun
     n = len(r) // 2
     inl = np.hypot(r[:n], r[n:]) < 3.0
     if int(inl.sum()) < min_pairs:
@@ -259,15 +271,15 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
     j = res.jac
     jtj = j.T @ j
     try:
-        cov = np.linalg.inv(jtj)
+        cov = np.linalg.inv(jtj)[:2, :2]
     except np.linalg.LinAlgError:
         return None
     s2 = float(np.sum(r[np.concatenate([inl, inl])] ** 2) / max(2 * int(inl.sum()) - 2, 1))
     cov = cov * max(1.0, s2)
-    d = (echo_points(a, v, w, t_ref_s, beta_s, accel_mps2, yaw_accel_radps2)
-         - echo_points(b, v, w, t_ref_s, beta_s, accel_mps2, yaw_accel_radps2))
+    d = (echo_points(a, v, w, t_ref_s, beta_s, accel_mps2, alpha)
+         - echo_points(b, v, w, t_ref_s, beta_s, accel_mps2, alpha))
     rms = float(np.sqrt(np.mean(np.sum(d[inl] ** 2, axis=1))))
-    return VelocityEstimate(v, w, cov, int(inl.sum()), rms)
+    return VelocityEstimate(v, w, cov, int(inl.sum()), rms, alpha)
 
 
 def strongest(e: Echoes, n: int, range_law_db: float = 40.0) -> Echoes:
