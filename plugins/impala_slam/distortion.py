@@ -251,7 +251,7 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
         if len(ia) < min_pairs:
             return None
         a, b = _subset(ea, ia), _subset(eb, ib)
-        if joint:
+        if joint and it == iterations - 1:  # the last, narrowest association only
             def fun(p, a=a, b=b):
                 return np.concatenate([_residuals(p[:2], a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad,
                                                   accel_mps2, p[2]),
@@ -263,7 +263,7 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
             res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
                                 args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2, alpha))
             v, w = (float(x) for x in res.x)
-    r = res.fun[:-1] if joint else res.fun
+    r = res.fun[:-1] if joint else res.fun  # the prior's residual apart
     n = len(r) // 2
     inl = np.hypot(r[:n], r[n:]) < 3.0
     if int(inl.sum()) < min_pairs:
