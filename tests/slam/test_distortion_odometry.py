@@ -398,9 +398,10 @@ def test_edinburgh_standing_still_does_not_move_the_estimate(edinburgh):
 def test_edinburgh_drive_against_gps(edinburgh):
     """The drive after the wait (~300 m from the GPS's 2 m/s on, up to ~11 m/s): absolute trajectory error after a rigid
     fit of positions (Kabsch; the imported heading is the IMU's and is not scored) against the
-    GPS at the estimate's times, in % of the GPS path. The issue's target is 1.5 %; against
-    these GPS time stamps, which lag the radar's by about 1.5 s (its speed and the IMU's yaw rate
-    both match the radar's best 1.5 s later), the bound is 2 %."""
+    GPS at the estimate's times, in % of the GPS path: under the issue's 1.5 % target (1.4 % when
+    written), bounded at 2 % for margin: these GPS time stamps lag the radar's by about 1.5 s (its
+    speed and the IMU's yaw rate both match the radar's best 1.5 s later), which alone costs
+    metres on the curves."""
     truth, est = edinburgh
     q, v = _gps_speed(truth)
     start = q[np.argmax((q > _gps_rest(truth)[-1][1]) & (v > 2.0))]  # the car drives off
