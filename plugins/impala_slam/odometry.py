@@ -9,8 +9,10 @@ Per turn (:class:`DistortionCore`):
 1. echoes of the turn (:func:`~.distortion.extract_echoes`, both ramps of a Doppler radar);
 2. the Kalman filter over (V, a, w) (filterpy; a the longitudinal acceleration, so the
    braking into a roundabout is predicted) predicts the velocities at the boundary between
-   the previous turn and this one; the yaw rate's slope over the last turns is the yaw
-   acceleration of the pair's motion model (the rate changes over two turns in a roundabout);
+   the previous turn and this one; on a slow radar (the largest yaw acceleration would turn
+   the scene by more than a beam width over a turn: IMPALA's 1 Hz, not Navtech's 4 Hz) the
+   pair's motion model has a yaw acceleration too (the rate changes over two turns in a
+   roundabout), estimated with (V, w) around the slope of the last turns' rates;
 3. the two turns' echoes are made to coincide from that prediction
    (:func:`~.distortion.estimate_velocity`); the result is kept when its coincidence score
    (strongest echoes, range-compensated) reaches ``accept_ratio`` of the last turns'. Else a
@@ -75,7 +77,7 @@ class DistortionConfig:
     search_gate_m: float = 0.6
     accept_ratio: float = 0.85  # the prediction's result is kept above this share of the recent coincidences
     lost_ratio: float = 0.6  # best coincidences near the prediction below this share of the recent ones: search all
-    yaw_accel: bool = True  # the yaw rate's change over the last two turns in the motion model of the next pair
+    yaw_accel: bool = True  # a yaw acceleration in the pair's motion model (where it shows, see _step)
     max_yaw_accel_radps2: float = math.radians(20.0)
     yaw_accel_window_s: float = 0.75
     yaw_accel_prior_std_radps2: float = math.radians(5.0)  # the pair's own, around the slope (0: the slope)
