@@ -16,6 +16,7 @@ import pytest
 SAMPLE = "oxford-radar-robotcar-sample"
 BOREAS = "boreas-frame"
 RADIATE = "radiate-fog-6-0-head"
+EDINBURGH = "radiate-edinburgh-head"
 
 
 def _find(name: str, marker: str) -> Path | None:
@@ -44,6 +45,10 @@ def find_radiate_head() -> Path | None:
     return _find(RADIATE, "Navtech_Polar")
 
 
+def find_radiate_edinburgh_head() -> Path | None:
+    return _find(EDINBURGH, "Navtech_Polar")
+
+
 def _or_skip(folder: Path | None, what: str) -> Path:
     if folder is None:
         pytest.skip(f"{what} not found (set IMPALA_FLOW_TEST_DATA)")
@@ -60,3 +65,7 @@ def boreas_frame_or_skip() -> Path:
 
 def radiate_head_or_skip() -> Path:
     return _or_skip(find_radiate_head(), "RADIATE fog_6_0 head")
+
+
+def radiate_edinburgh_head_or_skip() -> Path:
+    return _or_skip(find_radiate_edinburgh_head(), "RADIATE Edinburgh head")

@@ -151,23 +151,25 @@ def _arc_factors(th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
     return c, s, np.where(small, 1.0 - th * th / 6.0, s / ths), np.where(small, 0.5 * th, (1.0 - c) / ths)
 
 
-def arc_poses(v_mps: float, w_radps: float, dt_s: np.ndarray, accel_mps2: float = 0.0
+def arc_poses(v_mps: float, w_radps: float, dt_s: np.ndarray, accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(x, y, theta) after ``dt_s`` at constant speed and yaw rate, from (0, 0, 0); with an
-    acceleration the distance along the arc is v dt + a dt^2 / 2 (chord of the constant-rate
-    arc of that length: exact when a = 0, second order otherwise)."""
-    th = w_radps * dt_s
+    acceleration the distance along the arc is v dt + a dt^2 / 2, with a yaw acceleration the
+    heading w dt + alpha dt^2 / 2 (chord of the constant-rate arc of that length and turn:
+    exact when both are 0, second order otherwise)."""
+    th = (w_radps + 0.5 * yaw_accel_radps2 * dt_s) * dt_s
     _, _, sinc, cosc = _arc_factors(th)
     d = v_mps * dt_s + 0.5 * accel_mps2 * dt_s * dt_s
     return d * sinc, d * cosc, th
 
 
 def echo_points(e: Echoes, v_mps: float, w_radps: float, t_ref_s: float, beta_s: float,
-                accel_mps2: float = 0.0) -> np.ndarray:
+                accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0) -> np.ndarray:
     """Echoes placed in the frame of the pose at ``t_ref_s`` for the velocities (v, w) there,
     (n, 2). ``beta_s`` removes the range-Doppler coupling (0: not); ``accel_mps2`` is a known
-    longitudinal acceleration (the filter's), so that (v, w) stay the rates at ``t_ref_s``."""
-    x, y, th = arc_poses(v_mps, w_radps, e.t_s - t_ref_s, accel_mps2)
+    longitudinal acceleration and ``yaw_accel_radps2`` a known yaw acceleration (the filter's),
+    so that (v, w) stay the rates at ``t_ref_s`` while they change over the two turns."""
+    x, y, th = arc_poses(v_mps, w_radps, e.t_s - t_ref_s, accel_mps2, yaw_accel_radps2)
     r = e.range_m + e.ramp * beta_s * v_mps * np.cos(e.azimuth_rad)
     a = th + e.azimuth_rad
     return np.column_stack([x + r * np.cos(a), y + r * np.sin(a)])
@@ -180,15 +182,18 @@ class VelocityEstimate:
     cov: np.ndarray  # 2x2 over (v, w)
     pairs: int  # associated echo pairs kept (inliers)
     rms_m: float  # RMS distance of the inlier pairs
+    yaw_accel_radps2: float = 0.0  # the motion model's yaw acceleration (estimated or given)
 
 
-def _residuals(params, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float):
+def _residuals(params, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float,
+               yacc: float):
     v, w = params
-    pa = echo_points(ea, v, w, t_ref, beta, acc)
-    pb = echo_points(eb, v, w, t_ref, beta, acc)
+    pa = echo_points(ea, v, w, t_ref, beta, acc, yacc)
+    pb = echo_points(eb, v, w, t_ref, beta, acc, yacc)
     d = pa - pb
     # radial / tangential axes of each pair's second echo, with its own uncertainty
-    th = w * (eb.t_s - t_ref)
+    dt = eb.t_s - t_ref
+    th = (w + 0.5 * yacc * dt) * dt
     a = th + eb.azimuth_rad
     c, s = np.cos(a), np.sin(a)
     er = (d[:, 0] * c + d[:, 1] * s) / sr
@@ -201,11 +206,12 @@ def _subset(e: Echoes, idx: np.ndarray) -> Echoes:
 
 
 def associate(ea: Echoes, eb: Echoes, v: float, w: float, t_ref: float, beta: float,
-              gate_m: float, accel_mps2: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+              gate_m: float, accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0
+              ) -> tuple[np.ndarray, np.ndarray]:
     """Mutual nearest neighbours (same ramp) between the two turns' echoes within ``gate_m``."""
     ia_all, ib_all = [], []
-    pa = echo_points(ea, v, w, t_ref, beta, accel_mps2)
-    pb = echo_points(eb, v, w, t_ref, beta, accel_mps2)
+    pa = echo_points(ea, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
+    pb = echo_points(eb, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
     for sign in (1.0, -1.0):
         ma, mb = np.flatnonzero(ea.ramp == sign), np.flatnonzero(eb.ramp == sign)
         if len(ma) == 0 or len(mb) == 0:
@@ -224,27 +230,40 @@ def associate(ea: Echoes, eb: Echoes, v: float, w: float, t_ref: float, beta: fl
 
 def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: float, *, beta_s: float = 0.0,
                       gate_m: float = 2.0, sigma_range_m: float = 0.2, sigma_azimuth_rad: float = 0.005,
-                      iterations: int = 3, min_pairs: int = 8, accel_mps2: float = 0.0) -> VelocityEstimate | None:
+                      iterations: int = 3, min_pairs: int = 8, accel_mps2: float = 0.0,
+                      yaw_accel_radps2: float = 0.0, yaw_accel_std_radps2: float = 0.0) -> VelocityEstimate | None:
     """(V, w) making turn ``ea``'s echoes coincide with turn ``eb``'s, from (v0, w0).
 
     Associate (mutual nearest neighbours within a gate that shrinks from ``gate_m``), then
     minimise the radial/tangential residuals scaled by their uncertainties with a robust
     Cauchy loss (scipy.optimize.least_squares), a few times. The covariance is the Gauss-
     Newton one at the solution, scaled by the inliers' residual variance (at least 1).
-    None when fewer than ``min_pairs`` pairs associate."""
+    None when fewer than ``min_pairs`` pairs associate. With ``yaw_accel_std_radps2`` the yaw
+    acceleration is estimated too, ``yaw_accel_radps2`` being its prior (mean, this std)."""
     v, w = float(v0), float(w0)
+    alpha = float(yaw_accel_radps2)
+    joint = yaw_accel_std_radps2 > 0
     res = None
     for it in range(iterations):
         gate = gate_m * (0.5 ** it) if it < iterations - 1 else max(gate_m * 0.25, 3.0 * sigma_range_m)
         gate = max(gate, 3.0 * sigma_range_m)
-        ia, ib = associate(ea, eb, v, w, t_ref_s, beta_s, gate, accel_mps2)
+        ia, ib = associate(ea, eb, v, w, t_ref_s, beta_s, gate, accel_mps2, alpha)
         if len(ia) < min_pairs:
             return None
         a, b = _subset(ea, ia), _subset(eb, ib)
-        res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
-                            args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2))
-        v, w = (float(x) for x in res.x)
-    r = res.fun
+        if joint and it == iterations - 1:  # the last, narrowest association only
+            def fun(p, a=a, b=b):
+                return np.concatenate([_residuals(p[:2], a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad,
+                                                  accel_mps2, p[2]),
+                                       [(p[2] - yaw_accel_radps2) / yaw_accel_std_radps2]])
+            res = least_squares(fun, [v, w, alpha], loss="cauchy", f_scale=2.0, method="trf",
+                                x_scale=[1.0, 0.05, 0.1])
+            v, w, alpha = (float(x) for x in res.x)
+        else:
+            res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
+                                args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2, alpha))
+            v, w = (float(x) for x in res.x)
+    r = res.fun[:-1] if joint else res.fun  # the prior's residual apart
     n = len(r) // 2
     inl = np.hypot(r[:n], r[n:]) < 3.0
     if int(inl.sum()) < min_pairs:
@@ -252,14 +271,15 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
     j = res.jac
     jtj = j.T @ j
     try:
-        cov = np.linalg.inv(jtj)
+        cov = np.linalg.inv(jtj)[:2, :2]
     except np.linalg.LinAlgError:
         return None
     s2 = float(np.sum(r[np.concatenate([inl, inl])] ** 2) / max(2 * int(inl.sum()) - 2, 1))
     cov = cov * max(1.0, s2)
-    d = echo_points(a, v, w, t_ref_s, beta_s, accel_mps2) - echo_points(b, v, w, t_ref_s, beta_s, accel_mps2)
+    d = (echo_points(a, v, w, t_ref_s, beta_s, accel_mps2, alpha)
+         - echo_points(b, v, w, t_ref_s, beta_s, accel_mps2, alpha))
     rms = float(np.sqrt(np.mean(np.sum(d[inl] ** 2, axis=1))))
-    return VelocityEstimate(v, w, cov, int(inl.sum()), rms)
+    return VelocityEstimate(v, w, cov, int(inl.sum()), rms, alpha)
 
 
 def strongest(e: Echoes, n: int, range_law_db: float = 40.0) -> Echoes:
@@ -280,7 +300,7 @@ def strongest(e: Echoes, n: int, range_law_db: float = 40.0) -> Echoes:
 def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_range: tuple[float, float],
                     w_range: tuple[float, float], v_step: float, w_step: float, gate_m: float,
                     n_strongest: int = 100, prior: tuple[float, float, np.ndarray] | None = None,
-                    accel_mps2: float = 0.0) -> tuple[float, float, int] | None:
+                    accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0) -> tuple[float, float, int] | None:
     """Grid search of (v, w) maximising the coincidences of the strongest echoes: the start
     point of :func:`estimate_velocity` (whose association has a narrow basin: along a hedge
     or a facade parallel to the path, a wrong speed still finds neighbours, the aperture
@@ -299,7 +319,8 @@ def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_ran
     ws = np.arange(w_range[0], w_range[1] + 0.5 * w_step, w_step)
     vv, ww = (x.ravel() for x in np.meshgrid(vs, ws, indexing="ij"))
     per = max(1, 400_000 // ((len(a) + len(b)) * len(vs)))  # yaw rates per chunk
-    scores = np.concatenate([_scores(a, b, vs, ws[i:i + per], t_ref_s, beta_s, gate_m, accel_mps2)
+    scores = np.concatenate([_scores(a, b, vs, ws[i:i + per], t_ref_s, beta_s, gate_m, accel_mps2,
+                                     yaw_accel_radps2)
                              for i in range(0, len(ws), per)], axis=1).ravel()
     value = scores.astype(float)
     if prior is not None:
@@ -310,11 +331,11 @@ def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_ran
 
 
 def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: float, gate_m: float,
-           acc: float) -> np.ndarray:
+           acc: float, yacc: float = 0.0) -> np.ndarray:
     """Integer cell keys of every echo for every candidate, (len(ws), len(vs), n): the point
     is linear in v for a given w (x = x0(w) + v x1(w)), so the trigonometry runs once per w."""
     dt = e.t_s[None, :] - t_ref_s
-    c, s, sinc, cosc = _arc_factors(ws[:, None] * dt)
+    c, s, sinc, cosc = _arc_factors((ws[:, None] + 0.5 * yacc * dt) * dt)
     ca, sa = np.cos(e.azimuth_rad)[None, :], np.sin(e.azimuth_rad)[None, :]
     cang, sang = c * ca - s * sa, s * ca + c * sa  # cos, sin of th + azimuth
     d0 = 0.5 * acc * dt * dt
@@ -333,9 +354,9 @@ def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: fl
 
 
 def _scores(a: Echoes, b: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: float,
-            gate_m: float, acc: float) -> np.ndarray:
+            gate_m: float, acc: float, yacc: float = 0.0) -> np.ndarray:
     """Coincidences per candidate, (len(vs), len(ws))."""
-    kb = np.sort(_cells(b, vs, ws, t_ref_s, beta_s, gate_m, acc), axis=None)
-    ka = _cells(a, vs, ws, t_ref_s, beta_s, gate_m, acc)
+    kb = np.sort(_cells(b, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc), axis=None)
+    ka = _cells(a, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc)
     pos = np.minimum(np.searchsorted(kb, ka), len(kb) - 1)
     return np.count_nonzero(kb[pos] == ka, axis=2).T

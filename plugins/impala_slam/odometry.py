@@ -2,10 +2,17 @@
 
 Per turn (:class:`DistortionCore`):
 
+0. the turn's time on a turn clock (the radar turns steadily; a log's stamps may come late,
+   then catch up): a gap of n turns is n - 1 missing turns or a late stamp, whichever makes
+   the echoes coincide at the prediction; beams squeezed between two stamps are spread over
+   one rotation;
 1. echoes of the turn (:func:`~.distortion.extract_echoes`, both ramps of a Doppler radar);
 2. the Kalman filter over (V, a, w) (filterpy; a the longitudinal acceleration, so the
    braking into a roundabout is predicted) predicts the velocities at the boundary between
-   the previous turn and this one;
+   the previous turn and this one; on a slow radar (the largest yaw acceleration would turn
+   the scene by more than a beam width over a turn: IMPALA's 1 Hz, not Navtech's 4 Hz) the
+   pair's motion model has a yaw acceleration too (the rate changes over two turns in a
+   roundabout), estimated with (V, w) around the slope of the last turns' rates;
 3. the two turns' echoes are made to coincide from that prediction
    (:func:`~.distortion.estimate_velocity`); the result is kept when its coincidence score
    (strongest echoes, range-compensated) reaches ``accept_ratio`` of the last turns'. Else a
@@ -70,6 +77,11 @@ class DistortionConfig:
     search_gate_m: float = 0.6
     accept_ratio: float = 0.85  # the prediction's result is kept above this share of the recent coincidences
     lost_ratio: float = 0.6  # best coincidences near the prediction below this share of the recent ones: search all
+    yaw_accel: bool = True  # a yaw acceleration in the pair's motion model (where it shows, see _step)
+    max_yaw_accel_radps2: float = math.radians(20.0)
+    yaw_accel_window_s: float = 0.75
+    yaw_accel_prior_std_radps2: float = math.radians(5.0)  # the pair's own, around the slope (0: the slope)
+    late_ratio: float = 1.25  # a gap is read as a late time stamp when that explains this many times the coincidences
 
 
 @dataclass
@@ -82,6 +94,7 @@ class TurnResult:
     measured: VelocityEstimate | None
     degraded: bool
     searched: bool
+    clock_offset_s: float = 0.0  # time stamp of the turn minus its time on the turn clock (>= 0: stamped late)
 
 
 class DistortionCore:
@@ -98,6 +111,14 @@ class DistortionCore:
         self.recent_scores: list[int] = []
         self.turns = self.degraded = self.searches = self.wide_searches = self.resets = 0
         self.seconds = 0.0
+        # turn clock: a turn's time stamp may come late (a logger that stalls, then catches up)
+        self.clock_offset_s = 0.0  # stamp minus turn-clock time of the newest turn
+        self.prev_clock_s: float | None = None  # turn-clock time of the previous turn's first beam
+        self.intervals: list[float] = []  # recent stamp intervals of one turn (rotation period)
+        self.late_stamps = self.missing_turns = 0
+        self.beam_times_s = np.zeros(0)  # the newest turn's beams on the turn clock
+        self.yaw_acc = 0.0  # rad/s^2, from the last two turns' yaw rates
+        self.w_hist: list[tuple[float, float]] = []  # (turn-clock time, filtered yaw rate) of the last turns
 
     def _sigma_r(self, config) -> float:
         return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
@@ -129,14 +150,69 @@ class DistortionCore:
         finally:
             self.seconds += time.perf_counter() - t0
 
+    def _period(self, config) -> float:
+        """Rotation period: the median of the recent one-turn stamp intervals (the configured
+        rate until there are 8)."""
+        if len(self.intervals) >= 8:
+            return float(np.median(self.intervals))
+        return 1.0 / config.rotation_hz
+
+    def _clock(self, prev: Echoes | None, echoes: Echoes, t_stamp: float, beta: float, config) -> float:
+        """Offset (stamp minus turn clock) of the new turn. The radar turns at a steady rate;
+        its time stamps may come late: a logger stalls, then catches up with intervals shorter
+        than a turn (RADIATE: stalls of up to 1.6 s). A gap of n turns between stamps is either
+        n - 1 missing turns or a late stamp: the hypothesis kept is the one whose times make
+        the two turns' echoes coincide at the filter's prediction (at rest they all do, and the
+        stamps are kept). After a late stamp, the clock runs a turn per turn until the stamps
+        have caught up."""
+        offset = self.clock_offset_s
+        if prev is None or self.prev_clock_s is None:
+            return 0.0
+        period = self._period(config)
+        gap = t_stamp - offset - self.prev_clock_s  # interval on the turn clock if the offset holds
+        n = max(1, int(round(gap / period)))
+        if n == 1:
+            if offset == 0.0 and 0.5 * period < gap < 1.5 * period:
+                self.intervals = (self.intervals + [gap])[-64:]
+            return max(0.0, offset - max(period - gap, 0.0))  # catching up: a turn per turn
+        if self.kf is not None:
+            scores = []
+            x = self.kf.x
+            for m in range(1, n + 1):
+                dt_m = m * period if m < n else gap
+                shift = offset + gap - dt_m
+                t_m = self.prev_clock_s + dt_m
+                shifted = Echoes(echoes.t_s - shift, echoes.azimuth_rad, echoes.range_m, echoes.ramp, echoes.snr_db)
+                dt_kf = t_m - self.t_kf
+                scores.append(self._score(prev, shifted, t_m, beta, float(x[0] + x[1] * dt_kf), float(x[2]),
+                                          float(x[1])))
+            m = int(np.argmax(scores[:-1])) + 1
+            if scores[m - 1] >= self.cfg.late_ratio * scores[-1] + 3:
+                self.late_stamps += 1
+                return offset + gap - m * period
+        self.missing_turns += n - 1
+        return offset
+
     def _step(self, t_s, azimuth_rad, up, down, config) -> TurnResult | None:  # type: ignore[no-untyped-def]
         c = self.cfg
+        t_s = np.asarray(t_s, float)
+        t0, span = float(np.min(t_s)), float(np.ptp(t_s))
+        full = self._period(config) * (len(t_s) - 1) / config.beams_per_turn
+        if 0.0 < span < 0.98 * full:
+            # a turn lasts a rotation: beams squeezed between two stamps (a log catching up with
+            # itself, its beams spread up to the next stamp on import) are spread over one
+            t_s = t0 + (t_s - t0) * (full / span)
         echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
-        t_ref = float(np.min(t_s))
-        prev, self.prev = self.prev, echoes
+        beta = doppler_beta_s(config) if c.doppler else 0.0
+        prev = self.prev
+        self.clock_offset_s = self._clock(prev, echoes, float(np.min(t_s)), beta, config)
+        if self.clock_offset_s:
+            echoes.t_s = echoes.t_s - self.clock_offset_s
+        t_ref = t0 - self.clock_offset_s
+        self.beam_times_s = t_s - self.clock_offset_s
+        self.prev, self.prev_clock_s = echoes, t_ref
         if prev is None:
             return None
-        beta = doppler_beta_s(config) if c.doppler else 0.0
         sr = self._sigma_r(config)
         kw = dict(beta_s=beta, gate_m=c.gate_m, sigma_range_m=sr, sigma_azimuth_rad=c.sigma_azimuth_rad,
                   min_pairs=c.min_pairs)
@@ -145,23 +221,30 @@ class DistortionCore:
             self._predict(t_ref)
             around = (float(self.kf.x[0]), float(self.kf.x[2]))
         acc = 0.0 if self.kf is None else float(self.kf.x[1])
+        # the yaw acceleration is modelled where it shows: when at its largest it would turn the
+        # scene by more than a beam width over a turn (1 Hz IMPALA: yes; 4 Hz Navtech: 16 x less, no)
+        period = self._period(config)
+        turning = c.yaw_accel and 0.5 * c.max_yaw_accel_radps2 * period ** 2 > config.beam_width_rad
+        yacc = self.yaw_acc if turning else 0.0
+        kw["yaw_accel_radps2"] = yacc
+        kw["yaw_accel_std_radps2"] = c.yaw_accel_prior_std_radps2 if turning else 0.0
         est, searched = None, False
         if around is not None and self.recent_scores:
             # the prediction first: kept when its result coincides as well as the last turns did
             est = estimate_velocity(prev, echoes, around[0], around[1], t_ref, accel_mps2=acc, **kw)
             if est is not None:
-                score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc)
+                score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc, yacc)
                 if score >= c.accept_ratio * float(np.median(self.recent_scores)):
                     self.recent_scores = (self.recent_scores + [score])[-8:]
                 else:
                     est = None
         if est is None:
             searched = True
-            start = self._search(prev, echoes, t_ref, beta, around, acc)
+            start = self._search(prev, echoes, t_ref, beta, around, acc, yacc)
             if around is not None and (start is None or (self.recent_scores and start[2] < c.lost_ratio * float(
                     np.median(self.recent_scores)))):
                 # few coincidences near the prediction: the filter may be lost; search everything
-                wide = self._search(prev, echoes, t_ref, beta, None, acc)
+                wide = self._search(prev, echoes, t_ref, beta, None, acc, yacc)
                 if wide is not None and (start is None or wide[2] > start[2]):
                     start = wide
                     self.wide_searches += 1
@@ -179,7 +262,8 @@ class DistortionCore:
         elif self.kf is None:
             self.degraded += 1
             self.turns += 1
-            return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched)
+            return TurnResult(t_ref, math.nan, math.nan, np.full((2, 2), math.inf), self.pose, None, True, searched,
+                              self.clock_offset_s)
         self.degraded += degraded
         v, w = float(self.kf.x[0]), float(self.kf.x[2])
         P = self.kf.P
@@ -188,9 +272,18 @@ class DistortionCore:
             vm, wm = 0.5 * (self.last_vw[0] + v), 0.5 * (self.last_vw[1] + w)
             x, y, th = arc_step(*self.pose, vm, wm, t_ref - self.prev_t0)
             self.pose = (x, y, math.remainder(th, 2.0 * math.pi))
+        # yaw acceleration for the next pair's motion model: slope of the yaw rates over the last
+        # turns (at least two, yaw_accel_window_s), none at walking pace (a car turns as it rolls)
+        hist = (self.w_hist + [(t_ref, w)])[-8:]
+        self.w_hist = [h for h in hist[:-2] if t_ref - h[0] <= c.yaw_accel_window_s] + hist[-2:]
+        self.yaw_acc = 0.0
+        if abs(v) >= 1.0 and len(self.w_hist) >= 2:
+            tw, ww = np.array(self.w_hist).T
+            lim = c.max_yaw_accel_radps2
+            self.yaw_acc = float(np.clip(np.polyfit(tw - tw[-1], ww, 1)[0], -lim, lim))
         self.last_vw, self.prev_t0 = (v, w), t_ref
         self.turns += 1
-        return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched)
+        return TurnResult(t_ref, v, w, cov, self.pose, est, degraded, searched, self.clock_offset_s)
 
     def _nis(self, est: VelocityEstimate) -> float:
         kf = self.kf
@@ -208,7 +301,7 @@ class DistortionCore:
         self.kf.update(np.array([est.v_mps, est.w_radps]), R=est.cov)
 
     def _search(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float,
-                around: tuple[float, float] | None, acc: float) -> tuple[float, float, int] | None:
+                around: tuple[float, float] | None, acc: float, yacc: float = 0.0) -> tuple[float, float, int] | None:
         c = self.cfg
         v_lo, v_hi = -c.max_reverse_mps, c.max_speed_mps
         w_lo, w_hi = -c.max_yaw_rate_radps, c.max_yaw_rate_radps
@@ -222,10 +315,12 @@ class DistortionCore:
             w_lo, w_hi = max(w_lo, cw - sw), min(w_hi, cw + sw)
             prior = (around[0], around[1], np.array([[P[0, 0], P[0, 2]], [P[2, 0], P[2, 2]]]))
         return search_velocity(ea, eb, t_ref, beta, (v_lo, v_hi), (w_lo, w_hi), c.search_v_step,
-                               c.search_w_step, c.search_gate_m, prior=prior, accel_mps2=acc)
+                               c.search_w_step, c.search_gate_m, prior=prior, accel_mps2=acc, yaw_accel_radps2=yacc)
 
-    def _score(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, v: float, w: float, acc: float) -> int:
-        r = search_velocity(ea, eb, t_ref, beta, (v, v), (w, w), 1.0, 1.0, self.cfg.search_gate_m, accel_mps2=acc)
+    def _score(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, v: float, w: float, acc: float,
+               yacc: float = 0.0) -> int:
+        r = search_velocity(ea, eb, t_ref, beta, (v, v), (w, w), 1.0, 1.0, self.cfg.search_gate_m, accel_mps2=acc,
+                            yaw_accel_radps2=yacc)
         return 0 if r is None else r[2]
 
     def beam_poses(self, t_s: np.ndarray, t_from: float, pose_from: tuple[float, float, float],
@@ -244,7 +339,8 @@ class DistortionOdometry(Component):
     (integrated, frame ``odom``), ``degraded`` (1 when the turn gave no measurement: the
     covariance grows) and every ``map_period_s`` the map of the echoes' power placed by the
     odometry's own poses (Fig. 16). Outputs are stamped at the first beam of the newer of the
-    two turns compared. Never a NaN: before its first measurement it emits nothing.
+    two turns compared, on the turn clock (earlier than the turn's stamp when that came late).
+    Never a NaN: before its first measurement it emits nothing.
     """
 
     beams = Input(RadarBeam, doc="radar beams, each stamped at its own time")
@@ -326,10 +422,11 @@ class DistortionOdometry(Component):
         down = np.stack([b[1].down for b in beams]) if config.doppler and beams[0][1].down.size else None
         r = self.core.step(t_s, az, up, down, config)
         if r is not None and math.isfinite(r.v_mps):
-            self._emit(int(t_ns.min()), r)
+            # stamped on the turn clock (earlier than the turn's stamp when that came late)
+            self._emit(int(t_ns.min()) - int(round(r.clock_offset_s * 1e9)), r)
             if self._map is not None and self._last_turn is not None:
                 self._add_to_map(r)
-        self._last_turn = (t_s, az, up, config)
+        self._last_turn = (self.core.beam_times_s, az, up, config)
         if r is not None and math.isfinite(r.v_mps):
             self._last_result = r
 
@@ -385,6 +482,8 @@ class DistortionOdometry(Component):
             "searches": core.searches,
             "wide_searches": core.wide_searches,
             "filter_resets": core.resets,
+            "late_stamps": core.late_stamps,
+            "missing_turns": core.missing_turns,
             "partial_turns": self.partial_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),

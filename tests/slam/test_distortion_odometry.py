@@ -189,6 +189,49 @@ def test_open_field_degrades_and_the_covariance_grows():
     assert np.max(np.hypot(*np.diff(xyt[:, :2], axis=0).T)) < 8.0
 
 
+def _stamped_late(samples, delay_s: dict[int, float]):
+    """The beams of turn k stamped ``delay_s[k]`` late, the way a RADIATE log reads after its
+    logger stalls: one time per turn (its first beam's), the turn's beams spread evenly up to the
+    next turn's time (as the RADIATE import does)."""
+    turns: dict[int, list] = {}
+    for t, port, b in samples:
+        turns.setdefault(b.turn, []).append((t, port, b))
+    keys = sorted(turns)
+    stamp = {k: turns[k][0][0] + int(round(delay_s.get(k, 0.0) * 1e9)) for k in keys}
+    period = turns[keys[1]][0][0] - turns[keys[0]][0][0]
+    out = []
+    for i, k in enumerate(keys):
+        span = min(period, stamp[keys[i + 1]] - stamp[k]) if i + 1 < len(keys) else period
+        n = len(turns[k])
+        out += [(stamp[k] + j * span // n, port, b) for j, (_, port, b) in enumerate(turns[k])]
+    return out
+
+
+def test_late_time_stamps_are_not_read_as_a_stop():
+    """A logger stalls for 0.8 s then catches up over four turns (RADIATE's radar log does so,
+    up to 1.6 s): read literally, the turn after the stall is 1.8 s from the previous one and the
+    car would seem to slow to half its speed, then speed up. The speed stays the truth's, the
+    poses come at the turns' true times, and the distance is the truth's. A turn really missing
+    (same gap, no catching up) is read as such."""
+    rng = np.random.default_rng(9)
+    v0 = 7.0
+    pose = _trajectory(lambda t: np.full_like(t, v0), lambda t: np.full_like(t, math.radians(3.0)), 12.0)
+    samples = _beams(pose, lambda t: np.full_like(t, v0), _world(rng), 12.0, 360, True, rng)
+    late = _stamped_late(samples, {4: 0.8, 5: 0.6, 6: 0.4, 7: 0.2})
+    t, vw, xyt, _, degraded, summary = _run(late)
+    assert summary["late_stamps"] == 1 and summary["missing_turns"] == 0 and not any(degraded)
+    np.testing.assert_allclose(vw[:, 0], v0, atol=0.1)
+    np.testing.assert_allclose(t, np.arange(1.0, 12.0), atol=0.01)  # turn k starts at k s (first beam)
+    truth = pose(t)
+    assert abs(np.hypot(*(xyt[-1, :2] - xyt[0, :2])) - np.hypot(*(truth[-1, :2] - truth[0, :2]))) < 0.2
+    # the same gap with a turn really missing
+    t, vw, xyt, _, _, summary = _run([s for s in samples if s[2].turn != 4])
+    assert summary["late_stamps"] == 0 and summary["missing_turns"] == 1
+    np.testing.assert_allclose(vw[:, 0], v0, atol=0.15)
+    truth = pose(t)
+    assert abs(np.hypot(*(xyt[-1, :2] - xyt[0, :2])) - np.hypot(*(truth[-1, :2] - truth[0, :2]))) < 0.3
+
+
 @pytest.fixture(scope="module")
 def semi_urban(tmp_path_factory):
     """18 s of the semi-urban scenario (seed 21, not a tuning seed) through graphs/odometry.yaml."""
@@ -285,3 +328,91 @@ def test_same_mission_same_bytes_at_any_speed(semi_urban):
                    capture_output=True)
     second = {p.name: p.read_bytes() for p in out.iterdir() if p.suffix in (".mcap", ".json")}
     assert set(first) == {"odometry.mcap", "metrics.json"} and first == second
+
+
+@pytest.fixture(scope="module")
+def edinburgh(tmp_path_factory):
+    """The real RADIATE Edinburgh head (400 turns, GPS) imported and run through
+    graphs/odometry_navtech.yaml as a user does: truth (t, x, y) and estimate (t, x, y, theta)."""
+    from impala_flow.cli import main
+
+    from ..datasets import radiate_edinburgh_head_or_skip
+
+    folder = radiate_edinburgh_head_or_skip()
+    tmp = tmp_path_factory.mktemp("edinburgh")
+    mission = tmp / "head.mcap"
+    assert main(["import", "radiate", str(folder), "-o", str(mission), "--no-progress"]) == 0
+    out = tmp / "out"
+    assert main(["run", str(ROOT / "graphs" / "odometry_navtech.yaml"), "--var", f"mission={mission}",
+                 "--var", f"out={out}", "--no-progress", "--set", "odometry.map_cell_m=0"]) == 0
+    with MissionReader(mission) as r:
+        truth = np.array([(m.t_ns, m.data.x_m, m.data.y_m) for m in r.messages(["truth/pose"])], float)
+    with MissionReader(out / "odometry_navtech.mcap") as r:
+        est = np.array([(m.t_ns, m.data.x_m, m.data.y_m, m.data.theta_rad) for m in r.messages(["odometry/pose"])])
+    t0 = truth[0, 0]
+    truth[:, 0] = (truth[:, 0] - t0) * 1e-9
+    est[:, 0] = (est[:, 0] - t0) * 1e-9
+    return truth, est
+
+
+def _gps_speed(truth, window_s=4.0):
+    """GPS speed over ``window_s`` (centred), every 0.25 s: (times, m/s)."""
+    t = truth[:, 0]
+
+    def at(q):
+        return np.column_stack([np.interp(q, t, truth[:, 1]), np.interp(q, t, truth[:, 2])])
+
+    q = np.arange(t[0] + window_s / 2, t[-1] - window_s / 2, 0.25)
+    return q, np.hypot(*(at(q + window_s / 2) - at(q - window_s / 2)).T) / window_s
+
+
+def _gps_rest(truth, speed_mps=0.15, min_s=10.0, margin_s=2.0):
+    """Intervals where the GPS moves slower than ``speed_mps``, at least ``min_s`` long, shrunk
+    by ``margin_s`` at both ends."""
+    q, v = _gps_speed(truth)
+    rest = v < speed_mps
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], rest.astype(int), [0]])))
+    return [(q[a] + margin_s, q[b - 1] - margin_s) for a, b in zip(edges[::2], edges[1::2], strict=True)
+            if q[b - 1] - q[a] >= min_s]
+
+
+def test_edinburgh_standing_still_does_not_move_the_estimate(edinburgh):
+    """The car waits about a minute at the start (RADIATE, real scans). Over every interval where
+    the GPS is at rest, the estimate stays within the GPS's own scatter there (its largest distance
+    from its mean: the receiver's noise at rest) and its heading within 4 azimuth steps (a RADIATE
+    image's columns jitter by up to two azimuths from turn to turn, at each end)."""
+    truth, est = edinburgh
+    rests = _gps_rest(truth)
+    assert sum(b - a for a, b in rests) > 30.0  # the minute at the start
+    for a, b in rests:
+        g = truth[(truth[:, 0] >= a) & (truth[:, 0] <= b), 1:3]
+        scatter_m = float(np.max(np.hypot(*(g - g.mean(axis=0)).T)))
+        e = est[(est[:, 0] >= a) & (est[:, 0] <= b)]
+        assert len(e) >= 30
+        moved_m = float(np.max(np.hypot(*(e[:, 1:3] - e[0, 1:3]).T)))
+        assert moved_m <= scatter_m, (a, b, moved_m, scatter_m)
+        turned = np.abs(np.unwrap(e[:, 3]) - e[0, 3])
+        assert np.degrees(np.max(turned)) <= 4 * 0.9, (a, b)
+
+
+def test_edinburgh_drive_against_gps(edinburgh):
+    """The drive after the wait (~300 m from the GPS's 2 m/s on, up to ~11 m/s): absolute trajectory error after a rigid
+    fit of positions (Kabsch; the imported heading is the IMU's and is not scored) against the
+    GPS at the estimate's times, in % of the GPS path: under the issue's 1.5 % target (1.4 % when
+    written), bounded at 2 % for margin: these GPS time stamps lag the radar's by about 1.5 s (its
+    speed and the IMU's yaw rate both match the radar's best 1.5 s later), which alone costs
+    metres on the curves."""
+    truth, est = edinburgh
+    q, v = _gps_speed(truth)
+    start = q[np.argmax((q > _gps_rest(truth)[-1][1]) & (v > 2.0))]  # the car drives off
+    e = est[(est[:, 0] >= start) & (est[:, 0] <= truth[-1, 0])]
+    g = np.column_stack([np.interp(e[:, 0], truth[:, 0], truth[:, 1]), np.interp(e[:, 0], truth[:, 0], truth[:, 2])])
+    path_m = float(np.sum(np.hypot(*np.diff(g, axis=0).T)))
+    assert path_m > 250.0
+    p, q = e[:, 1:3] - e[:, 1:3].mean(axis=0), g - g.mean(axis=0)
+    u, _, vt = np.linalg.svd(p.T @ q)
+    rot = (u @ np.diag([1.0, np.sign(np.linalg.det(u @ vt))]) @ vt).T
+    ate_m = float(np.sqrt(np.mean(np.sum((p @ rot.T - q) ** 2, axis=1))))
+    assert 100.0 * ate_m / path_m <= 2.0, (ate_m, path_m)
+    est_path_m = float(np.sum(np.hypot(*np.diff(e[:, 1:3], axis=0).T)))
+    assert abs(est_path_m / path_m - 1.0) < 0.06
