@@ -138,3 +138,17 @@ def example_plugin(tmp_path_factory: pytest.TempPathFactory) -> ExamplePlugin:
         dist=meta["project"]["name"], version=meta["project"]["version"], entry_point=ep_name,
         module=module, source=src, how=how,
     )
+
+
+@pytest.fixture(scope="session")
+def edinburgh_mission(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The real RADIATE Edinburgh head (400 turns and its GPS) imported once per session with the
+    command a user runs, ``impala-flow import radiate`` (about a minute); skips without the data."""
+    from impala_flow.cli import main
+
+    from .datasets import radiate_edinburgh_head_or_skip
+
+    folder = radiate_edinburgh_head_or_skip()
+    mission = tmp_path_factory.mktemp("edinburgh") / "head.mcap"
+    assert main(["import", "radiate", str(folder), "-o", str(mission), "--no-progress"]) == 0
+    return mission

@@ -331,18 +331,13 @@ def test_same_mission_same_bytes_at_any_speed(semi_urban):
 
 
 @pytest.fixture(scope="module")
-def edinburgh(tmp_path_factory):
-    """The real RADIATE Edinburgh head (400 turns, GPS) imported and run through
+def edinburgh(edinburgh_mission, tmp_path_factory):
+    """The real RADIATE Edinburgh head (400 turns, GPS; imported once, tests/conftest.py) run through
     graphs/odometry_navtech.yaml as a user does: truth (t, x, y) and estimate (t, x, y, theta)."""
     from impala_flow.cli import main
 
-    from ..datasets import radiate_edinburgh_head_or_skip
-
-    folder = radiate_edinburgh_head_or_skip()
-    tmp = tmp_path_factory.mktemp("edinburgh")
-    mission = tmp / "head.mcap"
-    assert main(["import", "radiate", str(folder), "-o", str(mission), "--no-progress"]) == 0
-    out = tmp / "out"
+    mission = edinburgh_mission
+    out = tmp_path_factory.mktemp("edinburgh-odometry") / "out"
     assert main(["run", str(ROOT / "graphs" / "odometry_navtech.yaml"), "--var", f"mission={mission}",
                  "--var", f"out={out}", "--no-progress", "--set", "odometry.map_cell_m=0"]) == 0
     with MissionReader(mission) as r:
