@@ -16,8 +16,8 @@ its solves spread over the turns). A figure of every method over the truth (GPS 
 goes to ``OUT/<mission>/trajectories.png`` (each estimate aligned as for its ATE). ``--kiss-k``
 runs kiss-icp again with other numbers of points per beam (``--set points.k=K``).
 
-Missions: the RADIATE Edinburgh head (``--radiate``: an imported mission, by default the shared
-/work/out/radiate-head.mcap, else imported here from IMPALA_FLOW_TEST_DATA/radiate-edinburgh-head)
+Missions: the RADIATE Edinburgh head (imported here from IMPALA_FLOW_TEST_DATA/radiate-edinburgh-head,
+or ``--radiate``: any imported RADIATE mission, e.g. a whole drive)
 and the Oxford sample (imported here from IMPALA_FLOW_TEST_DATA/oxford-radar-robotcar-sample: 11
 turns, about 20 m, truth from its radar odometry). The last line is one JSON object:
 ``<mission>_<method>_ate_m``, ``_ate_pct``, ``_ms_per_turn`` (methods kissicp, rslam, odometry,
@@ -40,7 +40,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "plugins"))
 CLI = [sys.executable, "-m", "impala_flow"]
 DATA = Path(os.environ.get("IMPALA_FLOW_TEST_DATA", ROOT.parent / "shared" / "data"))
-SHARED_RADIATE = Path("/work/out/radiate-head.mcap")
 METHODS = {"kissicp": "kiss-icp", "rslam": "R-SLAM", "odometry": "DistortionOdometry", "ekf": "FMT + EKF",
            "isam2": "iSAM2 pose graph"}
 
@@ -159,8 +158,8 @@ def figure(name: str, res: dict, path: Path) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--missions", nargs="+", default=["radiate", "oxford"], choices=["radiate", "oxford"])
-    ap.add_argument("--radiate", default="", help="an imported RADIATE mission (default: the shared head, "
-                    "else imported from IMPALA_FLOW_TEST_DATA)")
+    ap.add_argument("--radiate", default="", help="an imported RADIATE mission (default: the Edinburgh head "
+                    "imported from IMPALA_FLOW_TEST_DATA into OUT/radiate)")
     ap.add_argument("--out", default=str(ROOT / "out" / "bench-peers"))
     ap.add_argument("--kiss-k", type=int, nargs="*", default=[], help="kiss-icp again with these points per beam")
     args = ap.parse_args()
@@ -170,13 +169,12 @@ def main() -> int:
         folder = out / name
         folder.mkdir(parents=True, exist_ok=True)
         if name == "radiate":
-            mission = Path(args.radiate) if args.radiate else SHARED_RADIATE
-            if not mission.is_file():
+            mission = Path(args.radiate) if args.radiate else folder / "radiate-head.mcap"
+            if not args.radiate:  # imported afresh: the reader's truth (GPS offset, headings) as it is now
                 src = DATA / "radiate-edinburgh-head"
                 if not src.is_dir():
-                    print(f"radiate: no {mission} and no {src}: skipped")
+                    print(f"radiate: no {src}: skipped")
                     continue
-                mission = folder / "radiate-head.mcap"
                 subprocess.run(CLI + ["import", "radiate", str(src), "-o", str(mission), "--no-progress"],
                                check=True, capture_output=True)
         else:

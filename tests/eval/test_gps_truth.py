@@ -205,3 +205,27 @@ def test_comparison_aligns_first_on_the_first_known_truth_heading(tmp_path, capl
     assert "odo_ate_rmse_m" not in comp.figures
     msgs = [r.getMessage() for r in caplog.records]
     assert len(msgs) == 1 and msgs[0].startswith("odo: align first needs a known truth heading"), msgs
+
+
+def test_final_drift_on_a_gps_truth_does_not_hang_on_one_course_heading():
+    """A drive whose GPS course is 15 deg off for the first second of motion (a car pulling out,
+    metre-level fixes) and an estimate that is the true path exactly: its final drift is 0 (the
+    start aligned on the positions of the path's first tenth), not the 15 deg x path chord one
+    heading would make of it; with every heading known (a survey truth) the first pose is used."""
+    from impala_eval.metrics import trajectory_metrics
+
+    t_ns = np.arange(0, 60_000_000_000, 250_000_000, dtype=np.int64)
+    s = 10.0 * t_ns * 1e-9
+    xyt = np.column_stack([s, 20.0 * np.sin(s / 200.0), np.arctan(0.1 * np.cos(s / 200.0))])
+    truth = xyt.copy()
+    truth[:4, 2] += math.radians(15.0)  # the course as the car moves off
+    known = np.ones(len(t_ns), bool)
+    known[0] = False  # at rest: unknown
+    m = trajectory_metrics(t_ns, xyt, t_ns, truth, truth_heading_known=known)
+    assert m.drift_pct == pytest.approx(0.0, abs=1e-9)
+    # the same headings all declared known (no GPS): the first known pose's heading is trusted,
+    # 15 deg off over ~600 m: the end is 2 sin(7.5 deg) x its distance from the start away
+    survey = trajectory_metrics(t_ns, xyt, t_ns, truth, truth_heading_known=np.ones(len(t_ns), bool))
+    chord = float(np.hypot(*(xyt[-1, :2] - xyt[0, :2])))
+    travelled = float(np.sum(np.hypot(*np.diff(xyt[:, :2], axis=0).T)))
+    assert survey.drift_pct == pytest.approx(100 * 2 * math.sin(math.radians(7.5)) * chord / travelled, rel=1e-6)
