@@ -378,7 +378,7 @@ def test_edinburgh_standing_still_does_not_move_the_estimate(edinburgh):
     image's columns jitter by up to two azimuths from turn to turn, at each end)."""
     truth, est = edinburgh
     rests = _gps_rest(truth)
-    assert sum(b - a for a, b in rests) > 30.0  # the minute at the start
+    assert sum(b - a for a, b in rests) > 25.0  # the minute at the start (less the GPS's creeping and margins)
     for a, b in rests:
         g = truth[(truth[:, 0] >= a) & (truth[:, 0] <= b), 1:3]
         scatter_m = float(np.max(np.hypot(*(g - g.mean(axis=0)).T)))
@@ -392,11 +392,10 @@ def test_edinburgh_standing_still_does_not_move_the_estimate(edinburgh):
 
 def test_edinburgh_drive_against_gps(edinburgh):
     """The drive after the wait (~300 m from the GPS's 2 m/s on, up to ~11 m/s): absolute trajectory error after a rigid
-    fit of positions (Kabsch; the imported heading is the IMU's and is not scored) against the
-    GPS at the estimate's times, in % of the GPS path: under the issue's 1.5 % target (1.4 % when
-    written), bounded at 2 % for margin: these GPS time stamps lag the radar's by about 1.5 s (its
-    speed and the IMU's yaw rate both match the radar's best 1.5 s later), which alone costs
-    metres on the curves."""
+    fit of positions (Kabsch; headings are not scored) against the GPS as imported (its fixes
+    taken 1.55 s before their stamps, an offset the import measured without this component) at
+    the estimate's times, in % of the GPS path: under the issue's 0.5 % goal (1.5 % target; 0.3 %
+    when written), and the path's length within 2 % of the GPS's."""
     truth, est = edinburgh
     q, v = _gps_speed(truth)
     start = q[np.argmax((q > _gps_rest(truth)[-1][1]) & (v > 2.0))]  # the car drives off
@@ -408,6 +407,8 @@ def test_edinburgh_drive_against_gps(edinburgh):
     u, _, vt = np.linalg.svd(p.T @ q)
     rot = (u @ np.diag([1.0, np.sign(np.linalg.det(u @ vt))]) @ vt).T
     ate_m = float(np.sqrt(np.mean(np.sum((p @ rot.T - q) ** 2, axis=1))))
-    assert 100.0 * ate_m / path_m <= 2.0, (ate_m, path_m)
+    print(f"\nDistortionOdometry on the Edinburgh drive: ATE {ate_m:.2f} m = {100 * ate_m / path_m:.2f} % of "
+          f"{path_m:.0f} m of GPS path")
+    assert 100.0 * ate_m / path_m <= 0.5, (ate_m, path_m)
     est_path_m = float(np.sum(np.hypot(*np.diff(e[:, 1:3], axis=0).T)))
-    assert abs(est_path_m / path_m - 1.0) < 0.06
+    assert abs(est_path_m / path_m - 1.0) < 0.02
