@@ -160,31 +160,38 @@ def test_truth_heading_from_the_course_over_ground_known_only_while_moving(tmp_p
 
 
 def test_gps_log_quirks_repeats_clock_step_back_stale_fix_missing_file(tmp_path, capsys):
+    """A 20 Hz GPS at 10 m/s whose log's clock steps back 0.36 s at fix 100 (the receiver keeps
+    its rate: the fixes stay 0.5 m apart), a stray stamp 1 s back at fix 60, a stale fix and a
+    missing file: the step is re-joined (every later fix back at its true time, none lost), the
+    stray stamp dropped, all of it reported in the block and the metadata."""
     radiate_folder(tmp_path, [T0_NS + k * P_NS for k in range(40)], rows=4, cols=8)
     true = T0_NS + np.arange(200) * 50_000_000
     stamped = true.copy()
-    stamped[100:] -= 360_000_000  # the receiver's clock steps back 0.36 s at fix 100
+    stamped[100:] -= 360_000_000  # the log's clock steps back 0.36 s at fix 100
+    stamped[60] -= 1_000_000_000  # one stray stamp
     east = np.arange(200) * 0.5  # 10 m/s east
     east[150] = east[149]  # fix 150: a stale fix (the previous position at a new time)
     radiate_gps(tmp_path, stamped.tolist(), east, np.zeros(200), np.zeros(200), index_only=(170,))
     _, truth, meta = _import(tmp_path, tmp_path / "r.mcap")
     block = _block(capsys.readouterr().out)
-    for key in ("padded times", "repeats", "times back", "late frames", "radar gaps", "GPS gaps", "GPS files", "truth",
-                "heading", "IMU yaw"):  # the same facts in the mission file's metadata
+    for key in ("padded times", "repeats", "times back", "clock steps", "late frames", "radar gaps", "GPS gaps",
+                "GPS files", "truth", "heading", "IMU yaw"):  # the same facts in the mission file's metadata
         assert meta[key.replace(" ", "_")] == block[key]
-    back = (stamped[100:] <= stamped[99]).sum()  # fixes whose time does not pass the last kept one
-    assert back == 7
     kept = np.ones(200, bool)
-    kept[100:100 + back] = False
-    kept[[150, 170]] = False
-    inside = (stamped >= T0_NS) & (stamped <= T0_NS + 40 * P_NS)
+    kept[[60, 150, 170]] = False
+    inside = (true >= T0_NS) & (true <= T0_NS + 40 * P_NS)
     t = [ti for ti, _ in truth]
-    assert t == stamped[kept & inside].tolist() and np.all(np.diff(t) > 0)
-    assert block["times back"].startswith(f"radar: none; GPS: {2 * back} line(s) dropped (time going back or "
-                                          "repeated): line 201 (fix 000201, -0.310 s)")
-    assert block["repeats"] == (f"GPS: {200 - back - 1} fix(es) written twice merged; 1 stale (a new time with "
+    assert t == true[kept & inside].tolist()  # every fix after the step at its true time
+    x = np.array([p.x_m for _, p in truth])
+    assert np.allclose(np.diff(x) / (np.diff(t) * 1e-9), 10.0, atol=1e-6)  # no jump at the step: 10 m/s
+    assert block["clock steps"] == ("GPS: 1 step(s) back of the log's clock re-joined (line 201, fix 000201: stamps "
+                                    "from there on moved +0.360 s, one period after the last stamp before the step: "
+                                    "the receiver kept its rate)")
+    assert block["times back"].startswith("radar: none; GPS: 2 line(s) dropped (time going back or repeated): "
+                                          "line 121 (fix 000121, -0.950 s)")
+    assert block["repeats"] == ("GPS: 198 fix(es) written twice merged; 1 stale (a new time with "
                                 "the previous position) merged; 0 same time with another fix (first kept)")
-    assert block["GPS files"] == (f"2 of {400 - 2 * back} listed in GPS_IMU_Twist.txt missing (first frame 000341, "
+    assert block["GPS files"] == ("2 of 398 listed in GPS_IMU_Twist.txt missing (first frame 000341, "
                                   "line 341): those fixes not read")
 
 

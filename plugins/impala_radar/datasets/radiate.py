@@ -45,8 +45,11 @@
 * **Truth.** ``GPS_IMU_Twist/<frame>.txt`` (line 1: ``latitude, longitude, altitude``; lines 2-4:
   the position covariance, East-North-Up as ROS's NavSatFix; line 5: the IMU orientation
   quaternion ``x, y, z, w``) with times in ``GPS_IMU_Twist.txt``. Every fix is written twice
-  (merged); a time going back (a receiver clock step) is dropped with every fix until the time
-  passes the one before the step; a new time with exactly the previous position is a stale fix,
+  (merged); the log's clock stepping back (0.36 s once in the full Edinburgh sequence) is
+  re-joined: the receiver kept its 20 Hz, so the stamps from the step on move to one period after
+  the last one before it (:func:`rejoin_clock_steps`; dropping the fixes until the time passes
+  again would leave every later fix 0.36 s off the radar's clock); a single stray stamp going
+  back is dropped; a new time with exactly the previous position is a stale fix,
   merged (on the head the receiver's fix moves >= 0.5 mm every 50 ms even at rest, so an exact
   repeat is no new solution); a listed file that is missing is counted. Each is reported.
   The fixes within the scans' times become poses in frame ``odom``: WGS-84 to a local
@@ -142,9 +145,43 @@ class FrameIndex:
     n_lines: int = 0
     padded: int = 0
     dropped: list[tuple[int, int, int]] = field(default_factory=list)
+    rejoined: list[tuple[int, int, int]] = field(default_factory=list)  # (line, frame, shift_ns) of clock steps
 
 
-def read_frame_times(path: Path, equal: str = "drop") -> FrameIndex:
+#: a step back of the stamps followed by at least this many samples still before the time
+#: before the step is the logging clock stepping back, not a stray stamp (see rejoin_clock_steps)
+CLOCK_STEP_MIN_SAMPLES = 3
+
+
+def rejoin_clock_steps(t_ns: np.ndarray, min_samples: int = CLOCK_STEP_MIN_SAMPLES,
+                       ) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """``(t_ns, steps)``: a steady-rate log (RADIATE's GPS: a fix every 50 ms, each written twice)
+    whose clock steps back keeps sampling at its rate, so every stamp from the step on is moved
+    by ``shift = t_before + period - t_after`` (one median period after the last stamp before
+    the step): the fixes stay continuous in time as they are in position. A step is a stamp
+    before the previous one followed by at least ``min_samples`` stamps still before that time
+    (a clock that stepped back by 0.36 s at 20 Hz leaves 7 fixes there); a single stray stamp
+    is not one (the caller drops it). ``steps``: ``(index, shift_ns)``."""
+    t = np.array(t_ns, dtype=np.int64)
+    if t.size < 2:
+        return t, []
+    d = np.diff(t)
+    period = int(np.median(d[d > 0])) if np.any(d > 0) else 0
+    steps: list[tuple[int, int]] = []
+    i = 1
+    while i < t.size:
+        if t[i] < t[i - 1]:
+            still_before = t[i:] < t[i - 1]
+            run = int(np.argmin(still_before)) if not still_before.all() else int(still_before.size)
+            if run >= min_samples:
+                shift = int(t[i - 1] + period - t[i])
+                t[i:] += shift
+                steps.append((i, shift))
+        i += 1
+    return t, steps
+
+
+def read_frame_times(path: Path, equal: str = "drop", clock_steps: str = "drop") -> FrameIndex:
     """A RADIATE ``<sensor>.txt`` index; times parsed exactly to ns. RADIATE writes the
     nanosecond fraction without its leading zeros (``1549986548.10563645`` is
     ``1549986548.010563645``): the fraction is padded on the left, as RADIATE's SDK does. A
@@ -172,6 +209,10 @@ def read_frame_times(path: Path, equal: str = "drop") -> FrameIndex:
     if not frames:
         raise DatasetError(f"{path}: no 'Frame: <n> Time: <seconds>' line")
     fr, t, ln = (np.array(v, dtype=np.int64) for v in (frames, times, lines))
+    rejoined: list[tuple[int, int, int]] = []
+    if clock_steps == "rejoin":
+        t, steps = rejoin_clock_steps(t)
+        rejoined = [(int(ln[i]), int(fr[i]), shift) for i, shift in steps]
     bad = time_steps_back(t, equal_is_back=equal == "drop")
     last = np.maximum.accumulate(t)
     dropped = [(int(ln[i]), int(fr[i]), int(t[i] - last[i - 1])) for i in np.flatnonzero(bad)]
@@ -180,7 +221,7 @@ def read_frame_times(path: Path, equal: str = "drop") -> FrameIndex:
     if back.size:
         i = int(back[0]) + 1
         raise DatasetError(f"{path}: line {ln[i]}: frame {fr[i]} after frame {fr[i - 1]}")
-    return FrameIndex(path, fr, t, ln, len(lines), padded, dropped)
+    return FrameIndex(path, fr, t, ln, len(lines), padded, dropped, rejoined)
 
 
 def turn_clock(t_ns: np.ndarray, window: int = LATE_WINDOW_FRAMES,
@@ -410,13 +451,18 @@ class RadiateDataset(NavtechDataset):
         if not (self.folder / "GPS_IMU_Twist.txt").is_file():
             report.notes.append("no GPS_IMU_Twist.txt (the fixes' times): no truth poses")
             return None
-        idx = read_frame_times(self.folder / "GPS_IMU_Twist.txt", equal="keep")
+        idx = read_frame_times(self.folder / "GPS_IMU_Twist.txt", equal="keep", clock_steps="rejoin")
         name = idx.path.name
         radar_padded = report.facts.get("padded times", "").split(" (")[0]
         report.fact("padded times", f"radar {radar_padded}, GPS {idx.padded} of {idx.n_lines} lines of {name} "
                     "(nanoseconds written without their leading zeros, padded on the left as RADIATE's SDK does)")
         report.fact("times back", report.facts.get("times back", "radar: none") + "; GPS: "
                     + _dropped_text(idx, "fix"))
+        if idx.rejoined:
+            ln, fr, shift = idx.rejoined[0]
+            report.fact("clock steps", f"GPS: {len(idx.rejoined)} step(s) back of the log's clock re-joined (line "
+                        f"{ln}, fix {fr:06d}: stamps from there on moved {shift / 1e9:+.3f} s, one period after "
+                        "the last stamp before the step: the receiver kept its rate)")
         rows, found = read_gps_imu(self.folder, idx.frames)
         if not found.all():
             miss = np.flatnonzero(~found)
