@@ -19,6 +19,19 @@ pull the translation to zero. :func:`register` then runs the rest of Algorithm 1
   correlated with the older one; the candidate whose translation peak is the stronger is
   kept (the 180 deg ambiguity resolved), sub-cell peak by a quadratic fit of the 3x3 cells
   around the maximum;
+- beyond Algorithm 1 (``min_wavelength_m``, 0 to switch it off): the translation's
+  whitened cross-power spectrum is weighted by a low-pass, 1 up to half the cut-off
+  frequency 1 / min_wavelength_m and a cosine roll-off to 0 at it. Whitening gives every
+  frequency the same weight, and the finest ones, which the radar does not resolve at range
+  (the arc between two azimuths at the outer radius, 2 pi range_max / azimuths: 0.79 m for
+  400 azimuths at 50 m), hold no coherent scene between two turns but a pattern fixed in the
+  sensor frame (the polar-to-Cartesian sampling of the same azimuths and bins every turn):
+  a false peak at zero shift. On the RADIATE Edinburgh head (0.17 m bins, 0.2 m cells, car at
+  10 m/s along a wall) it beat the 2.4 m true peak in 55 of 69 pairs at speed (SNR 40-98
+  against about 50); at 0.8 m, the per-pair error against R-SLAM fell from 1.9 m to 5 cm
+  there and Oxford's pairs improved (7.1 to 5.8 cm, 0.15 to 0.08 deg). Flat between 0.8 and
+  1.2 m; the default 0 keeps the whole band (the simulated campus missions, 0.5 m cells,
+  whose Nyquist wavelength of 1 m is already coarser);
 - beyond Algorithm 1 (``refine_deg``, 0 to switch it off): the rotation of the magnitude
   spectra is good to about a polar bin (0.5 deg): it is refined by a parabola through the
   translation peak's SNR at theta - step, theta, theta + step, and the translation taken
