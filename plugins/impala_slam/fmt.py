@@ -19,6 +19,19 @@ pull the translation to zero. :func:`register` then runs the rest of Algorithm 1
   correlated with the older one; the candidate whose translation peak is the stronger is
   kept (the 180 deg ambiguity resolved), sub-cell peak by a quadratic fit of the 3x3 cells
   around the maximum;
+- beyond Algorithm 1 (``min_wavelength_m``, 0 to switch it off): the translation's
+  whitened cross-power spectrum is weighted by a low-pass, 1 up to half the cut-off
+  frequency 1 / min_wavelength_m and a cosine roll-off to 0 at it. Whitening gives every
+  frequency the same weight, and the finest ones, which the radar does not resolve at range
+  (the arc between two azimuths at the outer radius, 2 pi range_max / azimuths: 0.79 m for
+  400 azimuths at 50 m), hold no coherent scene between two turns but a pattern fixed in the
+  sensor frame (the polar-to-Cartesian sampling of the same azimuths and bins every turn):
+  a false peak at zero shift. On the RADIATE Edinburgh head (0.17 m bins, 0.2 m cells, car at
+  10 m/s along a wall) it beat the 2.4 m true peak in 55 of 69 pairs at speed (SNR 40-98
+  against about 50); at 0.8 m, the per-pair error against R-SLAM fell from 1.9 m to 5 cm
+  there and Oxford's pairs improved (7.1 to 5.8 cm, 0.15 to 0.08 deg). Flat between 0.8 and
+  1.2 m; the default 0 keeps the whole band (the simulated campus missions, 0.5 m cells,
+  whose Nyquist wavelength of 1 m is already coarser);
 - beyond Algorithm 1 (``refine_deg``, 0 to switch it off): the rotation of the magnitude
   spectra is good to about a polar bin (0.5 deg): it is refined by a parabola through the
   translation peak's SNR at theta - step, theta, theta + step, and the translation taken
@@ -87,6 +100,7 @@ class FmtParams:
     rot_floor_deg: float = 0.05  # rotation std the peaks never see (the gyro's bias in the motion correction)
     min_snr: float = 6.0  # a translation peak weaker than this is not a registration
     refine_deg: float = 0.5  # step of the rotation refinement on the translation peak (0: Algorithm 1 only)
+    min_wavelength_m: float = 0.0  # finest spatial wavelength in the translation correlation (0: up to Nyquist)
 
 
 @dataclass
@@ -125,6 +139,7 @@ class FmtResult:
 _windows: dict[tuple[int, int], np.ndarray] = {}
 _highpass: dict[int, np.ndarray] = {}
 _tapers: dict[tuple, np.ndarray] = {}
+_lowpass: dict[tuple, np.ndarray | None] = {}
 
 
 def _hann(shape: tuple[int, int]) -> np.ndarray:
@@ -153,6 +168,22 @@ def _taper(p: FmtParams) -> np.ndarray:
         w[r < p.range_min_m] = 0.0
         _tapers[key] = w.astype(np.float32)
     return _tapers[key]
+
+
+def _low_pass(n: int, cell_m: float, min_wavelength_m: float) -> np.ndarray | None:
+    """Weight of the whitened cross-power spectrum (``rfft2`` layout of an n x n image): 1 up
+    to half the cut-off frequency 1 / min_wavelength_m, a cosine roll-off to 0 at it; None
+    when the cut-off is at or beyond Nyquist (the whole band, Algorithm 1 as written)."""
+    key = (n, cell_m, min_wavelength_m)
+    if key not in _lowpass:
+        fc = cell_m / min_wavelength_m if min_wavelength_m > 0 else np.inf  # cycles / cell
+        if fc >= 0.5 * math.sqrt(2):
+            _lowpass[key] = None
+        else:
+            f = np.hypot(np.fft.fftfreq(n)[:, None], np.fft.rfftfreq(n)[None, :])
+            u = np.clip((f - 0.5 * fc) / (0.5 * fc), 0.0, 1.0)
+            _lowpass[key] = (0.5 + 0.5 * np.cos(np.pi * u)).astype(np.float32)
+    return _lowpass[key]
 
 
 def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
@@ -232,13 +263,16 @@ def _quadratic_peak(c: np.ndarray, iy: int, ix: int) -> tuple[float, float, np.n
     return float(d[0]), float(d[1]), h / c0
 
 
-def phase_correlation(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+def phase_correlation(a: np.ndarray, b: np.ndarray,
+                      weight: np.ndarray | None = None) -> tuple[float, float, float, np.ndarray]:
     """Shift (dy, dx) in cells such that b(q) = a(q - d), its peak SNR and the normalised
     Hessian of the peak (eq. 1 of seed 2: normalised cross-power spectrum, inverse FFT)."""
     fa = scipy.fft.rfft2(a, workers=1)
     fb = scipy.fft.rfft2(b, workers=1)
     cross = fb * np.conj(fa)
     cross /= np.maximum(np.abs(cross), 1e-12 * max(float(np.abs(cross).max()), 1e-30))
+    if weight is not None:
+        cross *= weight
     c = scipy.fft.irfft2(cross, s=a.shape, workers=1)
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
     dy, dx, h = _quadratic_peak(c, int(iy), int(ix))
@@ -310,7 +344,7 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     wa = a.image * hann
     best = None
     for theta in (theta0, theta0 + math.pi):
-        cand = _translation(wa, b.image, hann, theta, p.cell_m)
+        cand = _translation(wa, b.image, hann, theta, p)
         if best is None:
             best = cand
         elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
@@ -322,7 +356,7 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     assert best is not None
     refined_curv = 0.0
     if p.refine_deg > 0:
-        best, refined_curv = _refine_rotation(wa, b.image, hann, best, math.radians(p.refine_deg), p.cell_m)
+        best, refined_curv = _refine_rotation(wa, b.image, hann, best, math.radians(p.refine_deg), p)
     snr_t, theta, x, y, h = best
     theta = math.remainder(theta, 2 * math.pi)
     cov = _covariance(p, snr_t, h, snr_r, curv_r, (x, y), refined_curv)
@@ -340,15 +374,16 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
     return register(prepare(a, p, linear_power), prepare(b, p, linear_power), p, prior_theta_rad)
 
 
-def _translation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, cell_m: float) -> tuple:
+def _translation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, p: FmtParams) -> tuple:
     """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak."""
     # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
-    dy, dx, snr, h = phase_correlation(wa, _derotate(b_img, theta) * hann)
-    return snr, theta, -dx * cell_m, -dy * cell_m, h
+    weight = _low_pass(wa.shape[0], p.cell_m, p.min_wavelength_m)
+    dy, dx, snr, h = phase_correlation(wa, _derotate(b_img, theta) * hann, weight)
+    return snr, theta, -dx * p.cell_m, -dy * p.cell_m, h
 
 
 def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: tuple, step: float,
-                     cell_m: float) -> tuple[tuple, float]:
+                     p: FmtParams) -> tuple[tuple, float]:
     """Beyond Algorithm 1: the rotation of the spectra is good to a bin; the translation
     peak's SNR as a function of the rotation is sharper. Parabola through theta - step,
     theta, theta + step (moving at most twice towards the larger side), then the translation
@@ -357,8 +392,8 @@ def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: 
     theta = best[1]
     mid = best
     for _ in range(3):
-        lo = _translation(wa, b_img, hann, theta - step, cell_m)
-        hi = _translation(wa, b_img, hann, theta + step, cell_m)
+        lo = _translation(wa, b_img, hann, theta - step, p)
+        hi = _translation(wa, b_img, hann, theta + step, p)
         if lo[0] > mid[0] and lo[0] >= hi[0]:
             theta, mid = theta - step, lo
             continue
@@ -369,7 +404,7 @@ def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: 
         if den >= 0:
             return mid, 0.0
         d = float(np.clip(0.5 * (lo[0] - hi[0]) / den, -0.5, 0.5))
-        return _translation(wa, b_img, hann, theta + d * step, cell_m), -den / step ** 2
+        return _translation(wa, b_img, hann, theta + d * step, p), -den / step ** 2
     return mid, 0.0
 
 

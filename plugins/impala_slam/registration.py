@@ -49,6 +49,9 @@ class FmtComponent(Component):
     rot_frac = Param(float, default=0.02, ge=0, doc="covariance: rotation std per radian turned")
     rot_floor_deg = Param(float, default=0.05, ge=0, doc="covariance: rotation std the peaks never see")
     min_snr = Param(float, default=6.0, gt=0, doc="translation peak SNR under which a registration fails")
+    min_wavelength_m = Param(float, default=0.0, ge=0,
+                             doc="finest spatial wavelength in the translation correlation (m; 0: up to the grid's "
+                                 "Nyquist): the sensor's resolution at the outer range, 2 pi range_max_m / azimuths")
     linear_power = Param(bool, default=True, doc="the images hold power (False: already in dB)")
 
     def fmt_params(self) -> FmtParams:
@@ -56,7 +59,8 @@ class FmtComponent(Component):
                          range_max_m=self.range_max_m, taper_m=self.taper_m,
                          db_floor_quantile=self.threshold_quantile, min_snr=self.min_snr,
                          angles=self.angles, refine_deg=self.refine_deg,
-                         along_frac=self.along_frac, rot_frac=self.rot_frac, rot_floor_deg=self.rot_floor_deg)
+                         along_frac=self.along_frac, rot_frac=self.rot_frac, rot_floor_deg=self.rot_floor_deg,
+                         min_wavelength_m=self.min_wavelength_m)
 
 
 class FmtRegistration(FmtComponent):
