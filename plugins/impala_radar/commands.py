@@ -63,10 +63,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "dataset and travel with every beam. Formats: oxford (Oxford Radar RobotCar: radar/<us>.png, "
         "gt/radar_odometry.csv), boreas (Boreas: radar/<us>.png, applanix/radar_poses.csv), radiate "
         "(RADIATE: Navtech_Polar/, Navtech_Polar.txt, GPS_IMU_Twist/). Real logs are read as recorded: "
-        "times going back or repeated, gaps, late frame stamps, GPS fixes written twice or stale, missing "
-        "GPS files are dropped or fixed and said, one line each, in the printed block (and the file's "
-        "metadata), with what the truth is. Bad input stops the import with one line naming the file and "
-        "the row or scan, and leaves no output file.",
+        "times going back or repeated, gaps, late frame stamps, GPS fixes written twice or stale, a GPS "
+        "clock stepping back, missing GPS files are dropped or fixed and said, one line each, in the "
+        "printed block (and the file's metadata), with what the truth is. Bad input stops the import "
+        "with one line naming the file and the row or scan, and leaves no output file.",
         epilog="examples:\n  impala-flow import oxford data/oxford-radar-robotcar-sample -o oxford.mcap\n"
         "  impala-flow import boreas data/boreas-2021-09-02-11-42 -o boreas.mcap\n"
         "  impala-flow import radiate data/fog_6_0 -o fog.mcap",
