@@ -45,31 +45,12 @@ import numpy as np
 from impala_flow.component import Component, Input, Output, Param
 from impala_flow.msgs import Pose2D, RadarDetections, Twist2D
 
+from . import se2
 from .se2 import between
 
-__all__ = ["KissIcp", "se2_log", "se2_exp"]
+__all__ = ["KissIcp"]
 
 MISSING = "slam.KissIcp needs the kiss-icp package: pip install 'impala-flow[peers]'"
-
-
-def _v_matrix(theta: float) -> np.ndarray:
-    """V(theta) of SE(2)'s exponential: t = V(theta) v."""
-    if abs(theta) < 1e-9:
-        return np.eye(2)
-    s, c = math.sin(theta), math.cos(theta)
-    return np.array([[s / theta, -(1.0 - c) / theta], [(1.0 - c) / theta, s / theta]])
-
-
-def se2_log(x_m: float, y_m: float, theta_rad: float) -> tuple[float, float, float]:
-    """Twist (v_x, v_y, omega) over unit time whose exponential is the motion (x, y, theta)."""
-    v = np.linalg.solve(_v_matrix(theta_rad), np.array([x_m, y_m]))
-    return float(v[0]), float(v[1]), float(theta_rad)
-
-
-def se2_exp(vx: float, vy: float, omega: float) -> tuple[float, float, float]:
-    """The motion (x, y, theta) of the constant twist (v_x, v_y, omega) over unit time."""
-    t = _v_matrix(omega) @ np.array([vx, vy])
-    return float(t[0]), float(t[1]), float(omega)
 
 
 def _planar(m: np.ndarray) -> tuple[float, float, float]:
@@ -176,7 +157,7 @@ class KissIcp(Component):
         a = np.asarray(det.azimuth_rad, np.float64)
         points = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(n)])
         if not first and dt > 0 and self._dt_delta:
-            twist = se2_log(*_planar(icp.last_delta))
+            twist = se2.log(_planar(icp.last_delta))
             icp.last_delta = _scaled(twist, dt / self._dt_delta)  # the prediction: from the last turn to this one
             if self._deskewer is not None and span > 0:
                 points = self._deskewer.preprocess(points, (t_ns - t_first) * 1e-9,
@@ -192,7 +173,7 @@ class KissIcp(Component):
         if raw is not None:
             self._boot.append((raw, (t_ns - t_first) * 1e-9, span, icp.last_pose.copy()))
             if len(self._boot) == 2 and dt > 0:
-                self._rebuild_map(se2_log(*step), dt)
+                self._rebuild_map(se2.log(step), dt)
         self._dt_delta = dt
         self._t_prev = t_ref
         self.turns += 1
@@ -200,7 +181,7 @@ class KissIcp(Component):
         self.seconds += time.perf_counter() - t0
         self.pose.emit(t_ref, Pose2D(x, y, theta, frame="odom"))
         if not first and dt > 0:
-            vx, _, w = se2_log(*step)
+            vx, _, w = se2.log(step)
             self.twist.emit(t_ref, Twist2D(vx / dt, w / dt))
 
     def _rebuild_map(self, twist: tuple[float, float, float], dt: float) -> None:
@@ -226,4 +207,4 @@ class KissIcp(Component):
 
 def _scaled(twist: tuple[float, float, float], s: float) -> np.ndarray:
     """4x4 matrix of the planar motion of ``twist`` over ``s`` of its time."""
-    return _matrix(*se2_exp(s * twist[0], s * twist[1], s * twist[2]))
+    return _matrix(*se2.exp((s * twist[0], s * twist[1], s * twist[2])))

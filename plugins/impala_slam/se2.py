@@ -1,5 +1,6 @@
 """Planar rigid transforms on (x_m, y_m, theta_rad) triples: compose (+), inverse, between, and
-an increment repeated along its constant-twist arc (``repeat``)."""
+the exponential and logarithm (``exp``, ``log``), and an increment repeated along its
+constant-twist arc (``repeat``)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 
 from impala_flow.msgs import wrap_angle
 
-__all__ = ["compose", "inverse", "between", "repeat", "wrap"]
+__all__ = ["compose", "inverse", "between", "log", "exp", "repeat", "wrap"]
 
 
 wrap = wrap_angle  # angle wrapped to [-pi, pi)
@@ -37,14 +38,23 @@ def _arc(theta: float) -> tuple[float, float]:
     return math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta
 
 
+def log(d: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The constant twist ``(v_x, v_y, omega)`` over unit time whose exponential is ``d``."""
+    a, b = _arc(d[2])
+    det = a * a + b * b
+    return (a * d[0] + b * d[1]) / det, (-b * d[0] + a * d[1]) / det, d[2]  # V(theta)^-1 (x, y)
+
+
+def exp(v: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The increment (x, y, theta) of the constant twist ``v = (v_x, v_y, omega)`` over unit time."""
+    a, b = _arc(v[2])
+    return a * v[0] - b * v[1], b * v[0] + a * v[1], wrap(v[2])
+
+
 def repeat(d: tuple[float, float, float], w: float) -> tuple[float, float, float]:
     """exp(w log d): the increment ``d`` continued for ``w`` times its duration at the same
     forward, lateral and yaw rates (a circular arc), e.g. a constant-velocity prediction
     over a gap of several intervals. Scaling (x, y, theta) by ``w`` instead keeps the first
     increment's chord direction: 18 m through a 25 deg bend lands 4 m off the road."""
-    a, b = _arc(d[2])
-    det = a * a + b * b
-    vx, vy = (a * d[0] + b * d[1]) / det, (-b * d[0] + a * d[1]) / det  # V(theta)^-1 (x, y)
-    th = w * d[2]
-    a, b = _arc(th)
-    return w * (a * vx - b * vy), w * (b * vx + a * vy), wrap(th)
+    vx, vy, om = log(d)
+    return exp((w * vx, w * vy, w * om))
