@@ -22,7 +22,7 @@ from .registry import Registry
 from .spec import GraphSpec, Problem
 from .yamlloc import Loc
 
-__all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file"]
+__all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash"]
 
 
 def looks_like_file(value: str) -> bool:
@@ -141,3 +141,30 @@ def check_paths(spec: GraphSpec, registry: Registry) -> list[Problem]:
         if why:
             problems.append(Problem(w.loc, f"{w.who}: cannot write '{w.path}': {why}"))
     return problems
+
+
+def _inside(child: str, parent: str) -> bool:
+    try:
+        return os.path.commonpath([child, parent]) == parent
+    except ValueError:  # different drives
+        return False
+
+
+def output_clash(output: str, inputs: list[tuple[str, str]]) -> str | None:
+    """Why writing ``output`` (a file or a folder) could destroy one of ``inputs``, or None.
+
+    ``inputs`` are ``(path, what)`` pairs (``what`` names it in the message, e.g. "the dataset
+    folder"). Refused, links resolved: the output *is* an input (same file, hard links too),
+    lies *inside* an input folder, or is a folder *over* (containing) an input. Commands call
+    it before any work, so nothing the user owns is touched when it says no.
+    """
+    out = os.path.realpath(os.path.expanduser(output))
+    for path, what in inputs:
+        inp = os.path.realpath(os.path.expanduser(path))
+        if out == inp or _same(output, path):
+            return f"'{output}' is {what} '{path}' itself: it would be overwritten"
+        if os.path.isdir(inp) and _inside(out, inp):
+            return f"'{output}' is inside {what} '{path}': write outside it"
+        if _inside(inp, out):
+            return f"'{output}' contains {what} '{path}': write elsewhere"
+    return None
