@@ -146,16 +146,14 @@ def _import(args: argparse.Namespace) -> int:
         if args.format != "radiate":
             raise CommandError("--gps-offset-s: radiate only (the other formats' truth is on the sensor's clock)",
                                EXIT_USAGE)
-        if not abs(args.gps_offset_s) <= 60.0:
-            raise CommandError(f"--gps-offset-s {args.gps_offset_s}: expected within +-60 s", EXIT_USAGE)
         params["gps_offset_s"] = args.gps_offset_s
-    if not args.db_per_count > 0:
-        raise CommandError(f"--db-per-count {args.db_per_count}: must be > 0", EXIT_USAGE)
     params["db_per_count"] = args.db_per_count
     if args.range_resolution_m is not None:
-        if not args.range_resolution_m > 0:
-            raise CommandError(f"--range-resolution-m {args.range_resolution_m}: must be > 0", EXIT_USAGE)
         params["range_resolution_m"] = args.range_resolution_m
+    # every numeric option finite and within the source's bounds, named as the user typed it
+    _, problems = DATASET_SOURCES[args.format].validate_params(params)
+    for name, msg in problems.items():
+        raise CommandError(f"--{name.replace('_', '-')}: {msg}", EXIT_USAGE)
     src = DATASET_SOURCES[args.format](args.format, **params)
     try:
         src.open()  # the folder and its first scan, before anything is written

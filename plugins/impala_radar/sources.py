@@ -17,6 +17,7 @@ from typing import Any
 from impala_flow import Output, Param, Source
 from impala_flow.msgs import ObjectStates, Pose2D, RadarBeam, Speed, YawRate
 
+from .datasets.common import DB_PER_COUNT_MAX, RANGE_OFFSET_MAX_BINS, RANGE_RESOLUTION_MAX_M
 from .datasets.oxford import OXFORD_AZIMUTH_OFFSET_DEG, OXFORD_RANGE_RESOLUTION_M
 from .datasets.radiate import RADIATE_AZIMUTH_OFFSET_DEG, RADIATE_GPS_OFFSET_S
 
@@ -48,13 +49,15 @@ class _NavtechFolderScans(Source):
 
     format = ""
     folder = Param(str, doc="dataset folder")
-    azimuth_offset_deg = Param(float, default=0.0, doc="constant added to every beam azimuth, counter-clockwise "
-                               "positive (a positive offset turns the scan to the left)")
-    range_offset_bins = Param(float, default=0.5, doc="range of bin 0 in bins: bin k at (k + this) x resolution; "
+    azimuth_offset_deg = Param(float, default=0.0, ge=-360.0, le=360.0, doc="constant added to every beam azimuth, "
+                               "counter-clockwise positive (a positive offset turns the scan to the left)")
+    range_offset_bins = Param(float, default=0.5, ge=-RANGE_OFFSET_MAX_BINS, le=RANGE_OFFSET_MAX_BINS,
+                              doc="range of bin 0 in bins: bin k at (k + this) x resolution; "
                               "0.5 = bin centres (the Navtech SDKs)")
     skip_bad_scans = Param(bool, default=False, doc="skip an unreadable scan (counted and reported with its "
                            "reason) instead of failing")
-    db_per_count = Param(float, default=0.5, gt=0.0, doc="the pixels' log scale: beams carry linear power "
+    db_per_count = Param(float, default=0.5, gt=0.0, le=DB_PER_COUNT_MAX,
+                         doc="the pixels' log scale: beams carry linear power "
                          "10^(count x this / 10) (Navtech: 0.5 dB per count)")
     beams = Output(RadarBeam, doc="every kept beam, with its own timestamp and azimuth, in acquisition order")
     truth = Output(Pose2D, doc="ground-truth poses (frame odom: first pose = identity)")
@@ -108,9 +111,9 @@ class OxfordScans(_NavtechFolderScans):
 
     format = "oxford"
     # both defaults measured against the sample's ground truth (see impala_radar.datasets.oxford)
-    range_resolution_m = Param(float, default=OXFORD_RANGE_RESOLUTION_M, gt=0.0,
+    range_resolution_m = Param(float, default=OXFORD_RANGE_RESOLUTION_M, gt=0.0, le=RANGE_RESOLUTION_MAX_M,
                                doc="range per bin: 4.38 cm, measured 4.43 +- 0.05 cm (the README says 4.32)")
-    azimuth_offset_deg = Param(float, default=OXFORD_AZIMUTH_OFFSET_DEG,
+    azimuth_offset_deg = Param(float, default=OXFORD_AZIMUTH_OFFSET_DEG, ge=-360.0, le=360.0,
                                doc="constant added to every azimuth, CCW positive: -0.95 deg measured")
 
     def _options(self) -> dict[str, Any]:
@@ -122,9 +125,11 @@ class BoreasScans(_NavtechFolderScans):
     ``applanix/radar_poses.csv``): every row kept (column 10 is the chirp direction)."""
 
     format = "boreas"
-    range_resolution_m = Param(float, default=0.0, ge=0.0, doc="range per bin; 0 = by date (0.0596 m before "
+    range_resolution_m = Param(float, default=0.0, ge=0.0, le=RANGE_RESOLUTION_MAX_M,
+                               doc="range per bin; 0 = by date (0.0596 m before "
                                "2021-09-21, 0.04381 m after)")
-    range_offset_bins = Param(float, default=None, doc="range of bin 0 in bins: bin k at (k + this) x resolution; "
+    range_offset_bins = Param(float, default=None, ge=-RANGE_OFFSET_MAX_BINS, le=RANGE_OFFSET_MAX_BINS,
+                              doc="range of bin 0 in bins: bin k at (k + this) x resolution; "
                               "default (None): -0.31 m, the Boreas documentation's calibrated offset")
 
     def _options(self) -> dict[str, Any]:
@@ -136,8 +141,9 @@ class RadiateScans(_NavtechFolderScans):
     optionally ``GPS_IMU_Twist/``): beam times from the frame times and the rotation period."""
 
     format = "radiate"
-    range_resolution_m = Param(float, default=0.17361, gt=0.0, doc="range per bin (the dataset's 0.17361 m)")
-    azimuth_offset_deg = Param(float, default=RADIATE_AZIMUTH_OFFSET_DEG,
+    range_resolution_m = Param(float, default=0.17361, gt=0.0, le=RANGE_RESOLUTION_MAX_M,
+                               doc="range per bin (the dataset's 0.17361 m)")
+    azimuth_offset_deg = Param(float, default=RADIATE_AZIMUTH_OFFSET_DEG, ge=-360.0, le=360.0,
                                doc="constant added to every azimuth, CCW positive: -2.3 deg measured")
     rotation = Param(str, default="cw", choices=("cw", "ccw"), doc="sense of increasing columns seen from above "
                      "(cw: checked on the data)")

@@ -46,7 +46,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import DatasetError, ImportReport, enu_to_odom, numbers, read_csv_columns, time_steps_back
+from .common import (
+    RANGE_RESOLUTION_MAX_M,
+    DatasetError,
+    ImportReport,
+    check_option,
+    check_speed,
+    enu_to_odom,
+    numbers,
+    read_csv_columns,
+    refuse_steps_back,
+    time_steps_back,
+    unix_times_ns,
+)
 from .oxford import NavtechPngDataset
 
 __all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BOREAS_RANGE_OFFSET_M", "BoreasDataset", "boreas_range_resolution_m",
@@ -77,18 +89,26 @@ def read_boreas_poses(path: Path, dropped: list[int] | None = None,
     """``(t_ns, easting, northing, yaw_enu)`` of ``radar_poses.csv`` (see the module doc). A
     row whose GPSTime goes back or repeats is an error, or dropped with its row number
     appended to ``dropped`` when that is a list."""
-    _, text = read_csv_columns(path, ["GPSTime", "easting", "northing", "roll", "pitch", "heading"])
-    t_ns = numbers(path, text[:, :1], int).astype(np.int64)[:, 0] * np.int64(1000)
+    cols = ["GPSTime", "easting", "northing", "roll", "pitch", "heading"]
+    _, text = read_csv_columns(path, cols)
+    t_ns = unix_times_ns(path, text[:, 0], 1000, "GPSTime")
     v = numbers(path, text[:, 1:], float)
-    bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+    # UTM: |easting|, |northing| < 10^7 m; angles in radians within a turn
+    bad = np.argwhere(~(np.abs(v) <= np.array([1e7, 1e7, 2 * np.pi, 2 * np.pi, 2 * np.pi])))
     if bad.size:
-        raise DatasetError(f"{path}: row {int(bad[0]) + 2}: a position or angle is not finite")
+        i, k = (int(j) for j in bad[0])
+        raise DatasetError(f"{path}: row {i + 2}: {cols[k + 1]} {text[i, k + 1]}: out of range "
+                           f"({'|m| <= 1e7 m (UTM)' if k < 2 else '|rad| <= 2 pi'})")
+    refuse_steps_back(t_ns, lambda i: f"{path}: row {i + 2}: GPSTime")
     back = time_steps_back(t_ns)
     if back.any() and dropped is None:
         raise DatasetError(f"{path}: row {int(np.argmax(back)) + 2}: GPSTime does not increase")
     if back.any():
         dropped += (np.flatnonzero(back) + 2).tolist()
+    rows = np.flatnonzero(~back) + 2
     t_ns, v = t_ns[~back], v[~back]
+    check_speed(t_ns, v[:, 0], v[:, 1], lambda i: f"{path}: row {rows[i]}: easting {float(v[i, 0])!r}, "
+                f"northing {float(v[i, 1])!r}")
     return t_ns, v[:, 0], v[:, 1], yaw_enu_of_boreas(v[:, 2], v[:, 3], v[:, 4])
 
 
@@ -103,6 +123,8 @@ class BoreasDataset(NavtechPngDataset):
                  range_offset_bins: float | None = None, report: ImportReport | None = None) -> None:
         from .oxford import timestamped_pngs
 
+        range_resolution_m = check_option("range_resolution_m", range_resolution_m, 0.0, RANGE_RESOLUTION_MAX_M,
+                                          "m")
         if not range_resolution_m:
             range_resolution_m = boreas_range_resolution_m(timestamped_pngs(Path(folder))[0][0])
         if range_offset_bins is None and range_resolution_m > 0:

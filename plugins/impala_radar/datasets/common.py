@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import heapq
+import io
 import math
 from collections import Counter
 from collections.abc import Iterator
@@ -16,16 +17,148 @@ import numpy as np
 from impala_flow import msgs
 
 __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
-           "read_csv_columns", "enu_to_odom", "counts_to_power", "gap_summary", "time_steps_back", "t_text"]
+           "read_csv_columns", "enu_to_odom", "counts_to_power", "gap_summary", "time_steps_back", "t_text",
+           "check_option", "read_text", "unix_times_ns", "check_span", "refuse_steps_back", "check_turn_period",
+           "check_speed", "MAX_MISSION_SPAN_S", "MAX_STEP_BACK_S", "MAX_SPEED_MPS", "NAVTECH_TURN_S",
+           "UNIX_S_MAX", "DB_PER_COUNT_MAX", "RANGE_RESOLUTION_MAX_M", "RANGE_OFFSET_MAX_BINS"]
 
 _BANDWIDTH_HZ = 1.0e9  # 76-77 GHz sweep of the Navtech CTS350-X / CIR304-H
 _F0_HZ = 76.5e9
 _EMPTY = np.zeros(0, dtype=np.float32)
 _BACK = "time going back or repeated"
 
+# What a dataset may hold; beyond these bounds a value is refused (DatasetError naming where it came from).
+#: latest Unix time (s) of a recording: 2100-01-01 (the earliest is 0: synthetic logs start there)
+UNIX_S_MAX = 4_102_444_800
+#: longest mission (scan times, first to last): the datasets' sequences last an hour at most
+MAX_MISSION_SPAN_S = 86_400.0
+#: largest step back of a log's clock that is a quirk (dropped or re-joined): RADIATE's GPS steps 0.36 s
+MAX_STEP_BACK_S = 10.0
+#: fastest a ground vehicle of these datasets moves (360 km/h); truth implying more is refused
+MAX_SPEED_MPS = 100.0
+#: the Navtech CTS350-X / CIR304-H turn (4 Hz): scans come no faster than MIN_TURN_FRACTION of it
+#: (measured: 0.2386 s on RADIATE fog_6_0, 0.2499 s on Edinburgh, 0.249 s on Oxford and Boreas)
+NAVTECH_TURN_S = 0.25
+MIN_TURN_FRACTION = 0.8
+#: a single frame stamped closer than this fraction of a turn to the one before is no new turn
+MIN_INTERVAL_FRACTION = 0.5
+#: option bounds: 0.5 dB per count is Navtech's (1 dB x 255 counts = 255 dB, already far beyond a radar)
+DB_PER_COUNT_MAX = 1.0
+RANGE_RESOLUTION_MAX_M = 10.0  # Navtech bins are 4-18 cm
+RANGE_OFFSET_MAX_BINS = 1000.0
+
 
 class DatasetError(ValueError):
     """Bad dataset input; the message is one line naming the file and the row or scan."""
+
+
+def check_option(name: str, value: float, lo: float, hi: float, unit: str = "", lo_open: bool = False) -> float:
+    """``value`` as a float when finite and within ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``),
+    else a :class:`DatasetError` naming the option: what a reader's constructor takes is checked
+    where it enters, for the API as for the command."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise DatasetError(f"option {name}: {value!r} is not a number") from None
+    if not (math.isfinite(v) and (v > lo if lo_open else v >= lo) and v <= hi):
+        raise DatasetError(f"option {name}: {value!r} {unit}: expected a finite value in "
+                           f"{'(' if lo_open else '['}{lo:g}, {hi:g}] {unit}".replace("  ", " ").rstrip())
+    return v
+
+
+def read_text(path: Path, what: str, max_bytes: int = 1 << 30) -> str:
+    """The text of ``path`` (UTF-8); a folder, a device or pipe, an unreadable file, one over
+    ``max_bytes`` or bytes that are no text are a :class:`DatasetError` naming the file (and the
+    line of the first bad byte)."""
+    path = Path(path)
+    if path.is_dir():
+        raise DatasetError(f"{path}: a folder, expected {what}")
+    if path.exists() and not path.is_file():
+        raise DatasetError(f"{path}: not a regular file (device, pipe or socket), expected {what}")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(max_bytes + 1)
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read {what} ({e.strerror or e})") from None
+    if len(data) > max_bytes:
+        raise DatasetError(f"{path}: over {max_bytes} bytes, too large for {what}")
+    nl = b"\n"
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise DatasetError(f"{path}: line {data[:e.start].count(nl) + 1}: byte 0x{data[e.start]:02x} is not "
+                           f"text ({what} expected)") from None
+    nul = text.find("\0")
+    if nul >= 0:
+        raise DatasetError(f"{path}: line {text[:nul].count(chr(10)) + 1}: NUL byte, not text ({what} expected)")
+    return text
+
+
+def unix_times_ns(path: Path, text: np.ndarray, unit_ns: int, column: str, first_row: int = 2) -> np.ndarray:
+    """A column of integer Unix times (text, in units of ``unit_ns``) as int64 ns; a field that
+    is no integer, negative or after :data:`UNIX_S_MAX` is a :class:`DatasetError` naming the
+    file, the row and the value (never an overflow)."""
+    text = np.asarray(text, dtype=str).reshape(-1)
+    hi = UNIX_S_MAX * 1_000_000_000 // unit_ns
+    try:
+        v = text.astype(np.int64)
+        bad = np.flatnonzero((v < 0) | (v > hi))
+    except (ValueError, OverflowError):
+        bad = np.arange(text.size)
+    for i in bad.tolist():
+        s = text[i].strip()
+        if not (s.isascii() and s.lstrip("-").isdigit()):
+            raise DatasetError(f"{path}: row {i + first_row}: {column} {s!r} is not an integer")
+        if not 0 <= int(s) <= hi:
+            raise DatasetError(f"{path}: row {i + first_row}: {column} {s} is not a Unix time of 1970-2100")
+    return v * np.int64(unit_ns)
+
+
+def check_span(t_ns: np.ndarray, where: str) -> None:
+    """A mission whose times span more than :data:`MAX_MISSION_SPAN_S` is refused (``where``
+    names what the times are)."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    if t.size and (int(t.max()) - int(t.min())) > MAX_MISSION_SPAN_S * 1e9:
+        span = (int(t.max()) - int(t.min())) / 1e9
+        raise DatasetError(f"{where}: times span {span:.0f} s ({span / 86400:.1f} days, from {t_text(int(t.min()))} "
+                           f"to {t_text(int(t.max()))} s): more than one recording ({MAX_MISSION_SPAN_S:.0f} s)")
+
+
+def refuse_steps_back(t_ns: np.ndarray, where: object) -> None:
+    """A time more than :data:`MAX_STEP_BACK_S` before an earlier one of the same log is no
+    clock quirk: a :class:`DatasetError`; ``where(i)`` names sample i (file and row)."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    if t.size < 2:
+        return
+    back = np.maximum.accumulate(t)[:-1] - t[1:]
+    big = np.flatnonzero(back > MAX_STEP_BACK_S * 1e9)
+    if big.size:
+        i = int(big[0]) + 1
+        raise DatasetError(f"{where(i)}: time {t_text(int(t[i]))} s is {back[i - 1] / 1e9:.3f} s before an earlier "
+                           f"one: a clock step back of more than {MAX_STEP_BACK_S:g} s is no logging quirk")
+
+
+def check_turn_period(period_s: float, where: str) -> None:
+    """Scans coming faster than the sensor can turn (a period under :data:`MIN_TURN_FRACTION` of
+    :data:`NAVTECH_TURN_S`) are refused."""
+    lo = MIN_TURN_FRACTION * NAVTECH_TURN_S
+    if not period_s >= lo:
+        raise DatasetError(f"{where}: one turn every {period_s:.4f} s ({1.0 / max(period_s, 1e-9):.1f} Hz): faster "
+                           f"than the Navtech turns ({NAVTECH_TURN_S:g} s, 4 Hz; at least {lo:g} s)")
+
+
+def check_speed(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray, where: object) -> None:
+    """Consecutive positions implying more than :data:`MAX_SPEED_MPS` are refused; ``where(i)``
+    names sample i. Times strictly increasing."""
+    if len(t_ns) < 2:
+        return
+    dt = np.diff(np.asarray(t_ns, dtype=np.int64)) / 1e9
+    v = np.hypot(np.diff(east_m), np.diff(north_m)) / dt
+    bad = np.flatnonzero(~(v <= MAX_SPEED_MPS))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise DatasetError(f"{where(i)}: {v[i - 1]:.4g} m/s since the sample before ({dt[i - 1]:.3f} s earlier): "
+                           f"faster than {MAX_SPEED_MPS:g} m/s")
 
 
 def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offset_m: float,
@@ -151,7 +284,8 @@ def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
     power on a log scale, ``db_per_count`` dB per count (0.5 for the CTS350-X and CIR304-H:
     0-127.5 dB over the 8 bits), so P = 10^(count db_per_count / 10), 1 at count 0. Every
     beam of the project carries linear power (the simulator's unit), so one graph serves
-    simulated and real missions."""
+    simulated and real missions. ``db_per_count`` must be in (0, :data:`DB_PER_COUNT_MAX`]."""
+    db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
     db = np.rint(np.asarray(power, np.float64) * 255.0) * db_per_count  # the integer count, exactly
     return np.power(10.0, db / 10.0).astype(np.float32)
 
@@ -208,6 +342,7 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
     same time), the beams' power linear (:func:`counts_to_power`). Bad scans raise
     :class:`DatasetError`; with ``skip_bad`` they are skipped and listed in
     ``report.skipped_scans``. Dropped rows are counted by reason in ``report``."""
+    check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
     report = report if report is not None else ImportReport()
     report.dataset, report.config = report.dataset or ds.name, ds.config
     streams: list[Iterator] = [_beams(ds, report, skip_bad, db_per_count)]
@@ -232,11 +367,15 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
 
 def read_csv_columns(path: Path, columns: list[str]) -> tuple[list[str], np.ndarray]:
     """Rows of a CSV file with a header, as text (N, len(columns)), in the order asked.
-    A missing column, a short row or an empty field is a :class:`DatasetError` naming the file
-    and the row (1 = the header)."""
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
+    A folder, an unreadable or binary file, an empty file, a header without rows, a missing
+    column, a row with another number of fields than the header or an empty field is a
+    :class:`DatasetError` naming the file and the row (1 = the header)."""
+    what = "a CSV file with columns " + ", ".join(columns)
+    reader = csv.reader(io.StringIO(read_text(path, what), newline=""))
+    try:
         header = [h.strip() for h in next(reader, [])]
+        if not header:
+            raise DatasetError(f"{path}: row 1: empty file, expected a header with {', '.join(columns)}")
         missing = [c for c in columns if c not in header]
         if missing:
             raise DatasetError(f"{path}: row 1 (header): missing column(s) {', '.join(missing)}")
@@ -245,25 +384,36 @@ def read_csv_columns(path: Path, columns: list[str]) -> tuple[list[str], np.ndar
         for n, row in enumerate(reader, start=2):
             if not row or not "".join(row).strip():
                 continue
-            if len(row) < len(header) or any(not row[i].strip() for i in idx):
+            if len(row) != len(header) or any(not row[i].strip() for i in idx):
                 raise DatasetError(f"{path}: row {n}: {len(row)} fields, expected {len(header)} "
                                    f"with {', '.join(columns)} filled")
             rows.append([row[i].strip() for i in idx])
+    except csv.Error as e:
+        raise DatasetError(f"{path}: row {reader.line_num}: not CSV ({e})") from None
+    if not rows:
+        raise DatasetError(f"{path}: row 1 (header) only: no data row")
     return header, np.array(rows, dtype=str).reshape(-1, len(columns))
 
 
 def numbers(path: Path, text: np.ndarray, dtype: type, first_row: int = 2) -> np.ndarray:
-    """``text`` (rows of strings) as numbers; a bad field is a :class:`DatasetError` with its row."""
+    """``text`` (rows of strings) as numbers; a bad field is a :class:`DatasetError` with its row
+    (for floats: also one that is not finite)."""
     try:
-        return text.astype(dtype)
-    except ValueError:
+        out = text.astype(dtype)
+    except (ValueError, OverflowError):
         for n, row in enumerate(text):
             for v in row:
                 try:
-                    dtype(v)
-                except ValueError:
+                    np.array([v]).astype(dtype)
+                except (ValueError, OverflowError):
                     raise DatasetError(f"{path}: row {n + first_row}: not a number: {str(v)!r}") from None
         raise
+    if out.dtype.kind == "f":
+        bad = np.argwhere(~np.isfinite(out))
+        if bad.size:
+            n, k = (int(i) for i in bad[0])
+            raise DatasetError(f"{path}: row {n + first_row}: {str(text[n, k])!r}: not a finite number")
+    return out
 
 
 def enu_to_odom(east_m: np.ndarray, north_m: np.ndarray, yaw_enu_rad: np.ndarray) -> np.ndarray:

@@ -25,15 +25,26 @@ import numpy as np
 from impala_flow import msgs
 
 from .common import (
+    MAX_SPEED_MPS,
+    RANGE_OFFSET_MAX_BINS,
+    RANGE_RESOLUTION_MAX_M,
+    UNIX_S_MAX,
     DatasetError,
     ImportReport,
     NavtechDataset,
     Scan,
+    check_option,
+    check_span,
+    check_turn_period,
     gap_summary,
     navtech_config,
     numbers,
     read_csv_columns,
+    read_text,
+    refuse_steps_back,
+    t_text,
     time_steps_back,
+    unix_times_ns,
 )
 from .navtech_png import ccw_azimuth, png_header, read_navtech_png, rotation_hz_of
 
@@ -52,6 +63,24 @@ OXFORD_RANGE_RESOLUTION_M = 0.0438
 #: +0.95 +- 0.17 deg of the step (9 of 10 pairs to the left, +3.3 cm mean): the scans are
 #: turned left of the ground truth's axes by that much (a mounting yaw), so -0.95 deg.
 OXFORD_AZIMUTH_OFFSET_DEG = -0.95
+#: a row of a scan is stamped within this of the scan's file name (measured: 0 to 253 ms after it)
+ROW_NAME_TOLERANCE_S = 1.0
+#: a pose row's time (the scan's middle) lies within this of its scan's time (measured: 125-127 ms)
+POSE_RADAR_TOLERANCE_S = 1.0
+
+
+def check_rows_against_name(path: Path, t_ns: np.ndarray) -> None:
+    """Every row time of scan ``path`` within :data:`ROW_NAME_TOLERANCE_S` of the time in its
+    name (the other clock): rows zeroed or from another date are a :class:`DatasetError`
+    naming the file, the row and both times."""
+    name_ns = int(path.stem) * 1000
+    d = (np.asarray(t_ns, dtype=np.int64).astype(np.float64) - float(name_ns)) / 1e9  # float: no int64 overflow
+    bad = np.flatnonzero(~(np.abs(d) <= ROW_NAME_TOLERANCE_S))
+    if bad.size:
+        i = int(bad[0])
+        raise DatasetError(f"{path}: row {i}: time {int(t_ns[i])} ns is {d[i]:+.6g} s from the file name's "
+                           f"{t_text(name_ns)} s (rows within {ROW_NAME_TOLERANCE_S:g} s of it): the row times and "
+                           "the scan's name disagree")
 
 
 def timestamped_pngs(folder: Path, report: ImportReport | None = None) -> list[tuple[int, Path]]:
@@ -61,7 +90,10 @@ def timestamped_pngs(folder: Path, report: ImportReport | None = None) -> list[t
     if not radar.is_dir():
         raise DatasetError(f"{folder}: no radar/ folder of Navtech PNG scans")
     pngs = sorted(radar.glob("*.png"))
-    scans = sorted((int(p.stem), p) for p in pngs if p.stem.isdigit())
+    scans = sorted((int(p.stem), p) for p in pngs if p.stem.isascii() and p.stem.isdigit())
+    late = [p for s, p in scans if s > UNIX_S_MAX * 1_000_000]
+    if late:
+        raise DatasetError(f"{late[0]}: the name is not a Unix time in us of 1970-2100")
     if not scans:
         raise DatasetError(f"{radar}: no <timestamp>.png scans")
     others = len(pngs) - len(scans)
@@ -79,20 +111,25 @@ class NavtechPngDataset(NavtechDataset):
     def __init__(self, folder: str | Path, range_resolution_m: float, azimuth_offset_deg: float = 0.0,
                  range_offset_bins: float = 0.5, report: ImportReport | None = None) -> None:
         self.folder = Path(folder)
+        self.range_resolution_m = check_option("range_resolution_m", range_resolution_m, 0.0,
+                                               RANGE_RESOLUTION_MAX_M, "m", lo_open=True)
+        self.azimuth_offset_deg = check_option("azimuth_offset_deg", azimuth_offset_deg, -360.0, 360.0, "deg")
+        range_offset_bins = check_option("range_offset_bins", range_offset_bins, -RANGE_OFFSET_MAX_BINS,
+                                         RANGE_OFFSET_MAX_BINS, "bins")
         stamped = timestamped_pngs(self.folder, report)
         self.scan_stamps_us = [s for s, _ in stamped]
         self.scan_paths = [p for _, p in stamped]
-        self.azimuth_offset_deg = float(azimuth_offset_deg)
+        check_span(np.array(self.scan_stamps_us, dtype=np.int64) * 1000, f"{self.folder / 'radar'} (scan names)")
         rows, cols, _ = png_header(self.scan_paths[0])
         first = read_navtech_png(self.scan_paths[0])
+        check_rows_against_name(self.scan_paths[0], first.timestamps_ns)
         self.shape = (rows, cols)
-        self.range_resolution_m = float(range_resolution_m)
-        if not self.range_resolution_m > 0:
-            raise DatasetError(f"{self.folder}: range resolution {range_resolution_m} m per bin: must be > 0")
+        rotation_hz = rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows)
+        check_turn_period(1.0 / rotation_hz, f"{self.folder / 'radar'}: {len(self.scan_paths)} scan(s) "
+                          f"{self.scan_paths[0].name}-{self.scan_paths[-1].name}")
         self.config = navtech_config(
             f"{self.sensor}-{self.name}", first.power.shape[1], self.range_resolution_m,
-            range_offset_m=range_offset_bins * self.range_resolution_m, beams_per_turn=rows,
-            rotation_hz=rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows))
+            range_offset_m=range_offset_bins * self.range_resolution_m, beams_per_turn=rows, rotation_hz=rotation_hz)
         if report is not None:
             self._report_scan_times(report)
 
@@ -132,6 +169,7 @@ class NavtechPngDataset(NavtechDataset):
     def read_scan(self, k: int) -> Scan:
         path = self.scan_paths[k]
         s = read_navtech_png(path, shape=self.shape)
+        check_rows_against_name(path, s.timestamps_ns)
         keep = s.valid if self.flag_is_valid else np.ones(s.valid.shape, dtype=bool)
         return Scan(path, s.timestamps_ns, ccw_azimuth(s.azimuth_rad, self.azimuth_offset_deg), s.power, keep,
                     "Oxford valid flag (column 10) != 255", self.chirp_of(s.flag))
@@ -141,17 +179,22 @@ class NavtechPngDataset(NavtechDataset):
 
 
 def _read_timestamps(path: Path) -> np.ndarray:
-    """The first column (us) of an Oxford ``<sensor>.timestamps`` file, in file order."""
-    out = []
-    with open(path) as f:
-        for n, line in enumerate(f, start=1):
-            parts = line.split()
-            if not parts:
-                continue
-            if not parts[0].isdigit():
-                raise DatasetError(f"{path}: line {n}: expected '<timestamp_us> <chunk>', got {line.strip()!r}")
-            out.append(int(parts[0]))
-    return np.array(out, dtype=np.int64)
+    """The first column (us) of an Oxford ``<sensor>.timestamps`` file, in file order; a step
+    back of more than a clock quirk is a :class:`DatasetError` naming the line."""
+    out, lines = [], []
+    for n, line in enumerate(read_text(path, "'<timestamp_us> <chunk>' lines").splitlines(), start=1):
+        parts = line.split()
+        if not parts:
+            continue
+        if not (parts[0].isascii() and parts[0].isdigit()):
+            raise DatasetError(f"{path}: line {n}: expected '<timestamp_us> <chunk>', got {line.strip()[:80]!r}")
+        if int(parts[0]) > UNIX_S_MAX * 1_000_000:
+            raise DatasetError(f"{path}: line {n}: {parts[0][:40]} is not a Unix time in us of 1970-2100")
+        out.append(int(parts[0]))
+        lines.append(n)
+    t = np.array(out, dtype=np.int64)
+    refuse_steps_back(t * 1000, lambda i: f"{path}: line {lines[i]}")
+    return t
 
 
 class OxfordDataset(NavtechPngDataset):
@@ -172,6 +215,7 @@ class OxfordDataset(NavtechPngDataset):
             return None
         rel = read_oxford_ground_truth(gt_path)
         name = gt_path.name
+        refuse_steps_back(rel.source_t_ns, lambda i: f"{gt_path}: row {i + 2}: source_timestamp")
         back = time_steps_back(rel.source_t_ns)
         if back.any():
             rows = np.flatnonzero(back) + 2
@@ -220,11 +264,25 @@ def read_oxford_ground_truth(csv_path: str | Path) -> OxfordRelativePoses:
     cols = ["source_timestamp", "destination_timestamp", "source_radar_timestamp",
             "destination_radar_timestamp", "x", "y", "yaw"]
     _, text = read_csv_columns(path, cols)
-    ints = numbers(path, text[:, :4], int).astype(np.int64) * np.int64(1000)
+    ints = np.column_stack([unix_times_ns(path, text[:, k], 1000, cols[k]) for k in range(4)])
     xyy = numbers(path, text[:, 4:], float)
-    bad = np.flatnonzero(~np.isfinite(xyy).all(axis=1))
+    # each time against its scan's (the pose is stamped in the middle of the scan)
+    for k, what in ((0, "source"), (1, "destination")):
+        d = (ints[:, k] - ints[:, k + 2]) / 1e9
+        bad = np.flatnonzero(~(np.abs(d) <= POSE_RADAR_TOLERANCE_S))
+        if bad.size:
+            i = int(bad[0])
+            raise DatasetError(f"{path}: row {i + 2}: {what}_timestamp {text[i, k]} is {d[i]:+.6g} s from "
+                               f"{what}_radar_timestamp {text[i, k + 2]} (within {POSE_RADAR_TOLERANCE_S:g} s: "
+                               "the pose is the scan's)")
+    # a step no vehicle makes between two scans (at most MAX_SPEED_MPS, plus 1 m) or a yaw beyond half a turn
+    dt_s = np.clip((ints[:, 0] - ints[:, 1]) / 1e9, 0.0, 10.0)
+    step = np.hypot(xyy[:, 0], xyy[:, 1])
+    bad = np.flatnonzero(~((step <= 1.0 + MAX_SPEED_MPS * dt_s) & (np.abs(xyy[:, 2]) <= np.pi)))
     if bad.size:
-        raise DatasetError(f"{path}: row {int(bad[0]) + 2}: x, y or yaw is not finite")
+        i = int(bad[0])
+        raise DatasetError(f"{path}: row {i + 2}: x {text[i, 4]} m, y {text[i, 5]} m, yaw {text[i, 6]} rad over "
+                           f"{dt_s[i]:.3f} s: more than {MAX_SPEED_MPS:g} m/s (+1 m) or half a turn between two scans")
     return OxfordRelativePoses(ints[:, 0], ints[:, 1], ints[:, 2], ints[:, 3], xyy[:, 0], -xyy[:, 1], -xyy[:, 2])
 
 

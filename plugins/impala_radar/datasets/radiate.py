@@ -88,12 +88,23 @@ import numpy as np
 from impala_flow import msgs
 
 from .common import (
+    MAX_SPEED_MPS,
+    MIN_INTERVAL_FRACTION,
+    NAVTECH_TURN_S,
+    RANGE_OFFSET_MAX_BINS,
+    RANGE_RESOLUTION_MAX_M,
+    UNIX_S_MAX,
     DatasetError,
     ImportReport,
     NavtechDataset,
     Scan,
+    check_option,
+    check_span,
+    check_turn_period,
     gap_summary,
     navtech_config,
+    read_text,
+    refuse_steps_back,
     t_text,
     time_steps_back,
 )
@@ -189,26 +200,29 @@ def read_frame_times(path: Path, equal: str = "drop", clock_steps: str = "drop")
     one with ``equal="drop"`` (radar frames); ``equal="keep"`` keeps it (GPS fixes written
     twice, merged by the caller). A bad line or a frame number not increasing is a
     :class:`DatasetError`."""
-    if not path.is_file():
+    if not path.exists():
         raise DatasetError(f"{path}: missing (frame times of the scans)")
     frames, times, lines, padded = [], [], [], 0
-    with open(path) as f:
-        for n, line in enumerate(f, start=1):
-            if not line.strip():
-                continue
-            m = _LINE.match(line)
-            if m is None:
-                raise DatasetError(f"{path}: line {n}: expected 'Frame: <n> Time: <seconds>', got {line.strip()!r}")
-            frac = m.group(3) or "0"
-            if len(frac) > 9:
-                raise DatasetError(f"{path}: line {n}: more than 9 digits after the point: {line.strip()!r}")
-            padded += len(frac) < 9
-            frames.append(int(m.group(1)))
-            times.append(int(m.group(2)) * 1_000_000_000 + int(frac))  # the digits are nanoseconds: left-padded
-            lines.append(n)
+    for n, line in enumerate(read_text(path, "'Frame: <n> Time: <seconds>' lines").splitlines(), start=1):
+        if not line.strip():
+            continue
+        m = _LINE.match(line)
+        if m is None or not m.group(0).isascii():
+            raise DatasetError(f"{path}: line {n}: expected 'Frame: <n> Time: <seconds>', got {line.strip()[:80]!r}")
+        frac = m.group(3) or "0"
+        if len(frac) > 9:
+            raise DatasetError(f"{path}: line {n}: more than 9 digits after the point: {line.strip()[:80]!r}")
+        if len(m.group(1)) > 9 or int(m.group(2)) > UNIX_S_MAX:
+            raise DatasetError(f"{path}: line {n}: frame {m.group(1)[:40]} at {m.group(2)[:40]} s: expected a "
+                               "frame number below 10^9 and a Unix time of 1970-2100")
+        padded += len(frac) < 9
+        frames.append(int(m.group(1)))
+        times.append(int(m.group(2)) * 1_000_000_000 + int(frac))  # the digits are nanoseconds: left-padded
+        lines.append(n)
     if not frames:
         raise DatasetError(f"{path}: no 'Frame: <n> Time: <seconds>' line")
     fr, t, ln = (np.array(v, dtype=np.int64) for v in (frames, times, lines))
+    refuse_steps_back(t, lambda i: f"{path}: line {ln[i]} (frame {fr[i]:06d})")
     rejoined: list[tuple[int, int, int]] = []
     if clock_steps == "rejoin":
         t, steps = rejoin_clock_steps(t)
@@ -311,6 +325,8 @@ def read_gps_imu(folder: Path, frames: np.ndarray) -> tuple[np.ndarray, np.ndarr
                 text = f.read()
         except FileNotFoundError:
             continue
+        except (OSError, UnicodeDecodeError):  # a folder, unreadable, binary: said with the file and line
+            text = read_text(Path(name), "a GPS/IMU text file")
         head = text.split("\n", 5)[:5]
         try:  # the common case in one go; any doubt goes through _fields for a located message
             vals = [float(v) for v in " ".join(head).replace(",", " ").split()]
@@ -322,9 +338,28 @@ def read_gps_imu(folder: Path, frames: np.ndarray) -> tuple[np.ndarray, np.ndarr
             path = Path(name)
             vals = (_fields(path, lines, 0, 3) + _fields(path, lines, 1, 3) + _fields(path, lines, 2, 3)
                     + _fields(path, lines, 3, 3) + _fields(path, lines, 4, 4))
+        _check_fix(Path(name), vals)
         rows[i] = vals
         found[i] = True
     return rows, found
+
+
+#: what a GPS fix may hold: WGS-84 degrees, altitude (m; the Dead Sea to the highest roads and beyond),
+#: position variances (m^2, >= 0: ROS writes zeros when unknown)
+_FIX_BOUNDS = ((0, "latitude", -90.0, 90.0, "deg"), (1, "longitude", -180.0, 180.0, "deg"),
+               (2, "altitude", -500.0, 9000.0, "m"))
+
+
+def _check_fix(path: Path, vals: list[float]) -> None:
+    for k, what, lo, hi, unit in _FIX_BOUNDS:
+        if not lo <= vals[k] <= hi:
+            raise DatasetError(f"{path}: line 1: {what} {vals[k]!r} {unit}: expected {lo:g} to {hi:g} {unit}")
+    for k in (3, 7, 11):
+        if not 0.0 <= vals[k] <= 1e12:
+            raise DatasetError(f"{path}: line {2 + (k - 3) // 4}: position variance {vals[k]!r} m^2: expected 0 "
+                               "to 1e12")
+    if not all(abs(v) <= 1e12 for v in vals[3:12]):
+        raise DatasetError(f"{path}: lines 2-4: a position covariance over 1e12 m^2")
 
 
 def course_over_ground(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray,
@@ -355,25 +390,46 @@ class RadiateDataset(NavtechDataset):
                  rotation: str = "cw", report: ImportReport | None = None, retime: bool = True,
                  gps_offset_s: float = RADIATE_GPS_OFFSET_S) -> None:
         self.folder = Path(folder)
-        if not math.isfinite(gps_offset_s) or abs(gps_offset_s) > 60.0:
-            raise DatasetError(f"{self.folder}: GPS clock offset {gps_offset_s} s: expected a finite value within "
-                               "+-60 s")
+        gps_offset_s = check_option("gps_offset_s", gps_offset_s, -60.0, 60.0, "s")
+        range_resolution_m = check_option("range_resolution_m", range_resolution_m, 0.0, RANGE_RESOLUTION_MAX_M,
+                                          "m", lo_open=True)
+        azimuth_offset_deg = check_option("azimuth_offset_deg", azimuth_offset_deg, -360.0, 360.0, "deg")
+        range_offset_bins = check_option("range_offset_bins", range_offset_bins, -RANGE_OFFSET_MAX_BINS,
+                                         RANGE_OFFSET_MAX_BINS, "bins")
         self.gps_offset_ns = int(round(gps_offset_s * 1e9))
         polar = self.folder / "Navtech_Polar"
         if not polar.is_dir():
             raise DatasetError(f"{self.folder}: no Navtech_Polar/ folder of RADIATE polar scans")
         if rotation not in ("cw", "ccw"):
             raise DatasetError(f"rotation {rotation!r}: 'cw' or 'ccw'")
-        if not range_resolution_m > 0:
-            raise DatasetError(f"{self.folder}: range resolution {range_resolution_m} m per bin: must be > 0")
         report = report if report is not None else ImportReport()
         self.report = report
         idx = read_frame_times(self.folder / "Navtech_Polar.txt", equal="drop")
-        self.index = idx
+        if idx.t_ns.size > 1:  # the frames come no faster than the sensor turns (median over m frames)
+            m = max(1, min(20, idx.t_ns.size // 4))
+            check_turn_period(float(np.median((idx.t_ns[m:] - idx.t_ns[:-m]) / m)) / 1e9,
+                              f"{idx.path}: lines {idx.lines[0]}-{idx.lines[-1]}, {idx.t_ns.size} frames in "
+                              f"{(idx.t_ns[-1] - idx.t_ns[0]) / 1e9:.3f} s")
+        # a frame stamped less than half a turn after the last one kept is no new turn: dropped and counted
+        # (stamps are late, never early; the real logs' shortest interval is 0.214 s, a backlog catching up)
+        short = _too_soon(idx.t_ns, int(MIN_INTERVAL_FRACTION * NAVTECH_TURN_S * 1e9))
+        if short.any():
+            i = int(np.argmax(short))
+            before = int(idx.t_ns[:i][~short[:i]][-1])
+            short_text = (f"{int(short.sum())} frame(s) dropped: stamped less than "
+                          f"{MIN_INTERVAL_FRACTION * NAVTECH_TURN_S:g} s (half the sensor's turn) after the frame "
+                          f"kept before (first line {idx.lines[i]}, frame {idx.frames[i]:06d}, "
+                          f"{(int(idx.t_ns[i]) - before) / 1e9:+.3f} s)")
+            idx = FrameIndex(idx.path, idx.frames[~short], idx.t_ns[~short], idx.lines[~short], idx.n_lines,
+                             idx.padded, idx.dropped, idx.rejoined)
+        else:
+            short_text = "none (no frame less than half a turn after the one before)"
         turn_t, period, late = turn_clock(idx.t_ns) if retime else (idx.t_ns, None, None)
         if period is None:
             m = max(1, min(20, idx.t_ns.size // 4))
             period = float(np.median((idx.t_ns[m:] - idx.t_ns[:-m]) / m)) if idx.t_ns.size > 1 else 250e6
+        check_span(turn_t, f"{idx.path}")
+        self.index = idx
         paths = [polar / f"{fr:06d}.png" for fr in idx.frames.tolist()]
         present = np.array([p.is_file() for p in paths], dtype=bool)
         if not present.any():
@@ -410,6 +466,7 @@ class RadiateDataset(NavtechDataset):
                 report.fact("late frames", f"none (stamps on the turn clock of {period / 1e9:.5f} s per turn)")
         else:
             report.fact("late frames", "not checked: frame times as stamped")
+        report.fact("short turns", short_text)
         missing_png = int((~present).sum())
         gaps = gap_summary(turn_t, period, [f"frame {f:06d}" for f in idx.frames.tolist()])
         if missing_png:
@@ -468,7 +525,7 @@ class RadiateDataset(NavtechDataset):
             miss = np.flatnonzero(~found)
             report.fact("GPS files", f"{miss.size} of {found.size} listed in {name} missing (first frame "
                         f"{idx.frames[miss[0]]:06d}, line {idx.lines[miss[0]]}): those fixes not read")
-        t_ns, rows = idx.t_ns[found], rows[found]
+        t_ns, rows, fr = idx.t_ns[found], rows[found], idx.frames[found]
         if not t_ns.size:
             report.notes.append(f"{name}: no GPS file found: no truth poses")
             return None
@@ -479,9 +536,9 @@ class RadiateDataset(NavtechDataset):
         first_of = np.maximum.accumulate(np.where(new_t, np.arange(t_ns.size), 0))
         same = ~new_t & np.all(rows == rows[first_of], axis=1)
         other = ~new_t & ~same
-        rows, t_ns = rows[new_t], t_ns[new_t]
+        rows, t_ns, fr = rows[new_t], t_ns[new_t], fr[new_t]
         stale = np.concatenate([[False], np.all(rows[1:, :2] == rows[:-1, :2], axis=1)])
-        rows, t_ns = rows[~stale], t_ns[~stale]
+        rows, t_ns, fr = rows[~stale], t_ns[~stale], fr[~stale]
         report.fact("repeats", f"GPS: {int(same.sum())} fix(es) written twice merged; {int(stale.sum())} stale "
                     f"(a new time with the previous position) merged; {int(other.sum())} same time with another "
                     "fix (first kept)")
@@ -494,6 +551,11 @@ class RadiateDataset(NavtechDataset):
         report.fact("GPS gaps", gap_summary(t_ns, gps_period, None, "fix", "fixes"))
         east, north = geodetic_to_en(rows[:, 0], rows[:, 1], rows[:, 2])
         course, speed = course_over_ground(t_ns, east, north)
+        fast = np.flatnonzero(~(speed <= MAX_SPEED_MPS))
+        if fast.size:
+            i = int(fast[0])
+            raise DatasetError(f"{self.folder / 'GPS_IMU_Twist' / f'{fr[i]:06d}.txt'}: line 1: {speed[i]:.4g} m/s over "
+                               f"the {COURSE_BASELINE_S:g} s around this fix: faster than {MAX_SPEED_MPS:g} m/s")
         qx, qy, qz, qw = rows[:, 12], rows[:, 13], rows[:, 14], rows[:, 15]
         imu_yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         t0, t1 = int(self.turn_t_ns[0]), int(self.turn_t_ns[-1]) + self.period_ns
@@ -527,6 +589,22 @@ class RadiateDataset(NavtechDataset):
             report.fact("IMU yaw", f"{d.mean():+.1f} deg from the course while moving (std {d.std():.1f} deg, "
                         f"{k} poses): not used as truth")
         return t_ns, xyt, cov
+
+
+def _too_soon(t_ns: np.ndarray, min_ns: int) -> np.ndarray:
+    """Mask of the times less than ``min_ns`` after the last one kept (each compared with the
+    last kept: a sequential rule, hence the loop over the frames)."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    out = np.zeros(t.size, dtype=bool)
+    if t.size < 2 or np.diff(t).min() >= min_ns:
+        return out
+    last = int(t[0])
+    for i in range(1, t.size):
+        if int(t[i]) - last < min_ns:
+            out[i] = True
+        else:
+            last = int(t[i])
+    return out
 
 
 def _dropped_text(idx: FrameIndex, what: str) -> str:
