@@ -353,3 +353,10 @@ def test_oxford_scan_index_that_is_no_text(folder, capsys):
     assert _fails("oxford", folder, capsys).endswith(f"{index}: line 3: time 1690000000.000000000 s is "
                                                      "10000000.250 s before an earlier one: a clock step back of "
                                                      "more than 10 s is no logging quirk")
+
+
+def test_one_scan_whose_rows_share_one_time_is_named(folder, capsys):
+    t = 1_700_000_000_000_000
+    navtech_png(folder / "radar" / f"{t}.png", t, times_us=np.full(400, t, np.int64))
+    assert _fails("oxford", folder, capsys).endswith(f"{folder / 'radar' / f'{t}.png'}: cannot measure the rotation "
+                                                     "rate: one scan whose rows share one time")

@@ -354,6 +354,12 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
             k = int(bad[0]) + 1
             raise DatasetError(f"{getattr(ds, 'folder', ds.name)}: truth pose {k} at {int(t[k])} ns is not after "
                                f"the one before ({int(t[k - 1])} ns)")
+        # the last guard: no NaN or inf leaves a reader (each reader bounds what it reads; this names a miss)
+        for what, v in (("pose", xyt), ("covariance", truth[2] if len(truth) > 2 else xyt)):
+            bad = np.flatnonzero(~np.isfinite(np.asarray(v, dtype=np.float64).reshape(len(t), -1)).all(axis=1))
+            if bad.size:
+                raise DatasetError(f"{getattr(ds, 'folder', ds.name)}: truth {what} {int(bad[0])} at "
+                                   f"t = {t_text(int(t[bad[0]]))} s is not finite")
         report.truth_poses = len(t)
         if len(truth) > 2:
             streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, c, frame="odom"))

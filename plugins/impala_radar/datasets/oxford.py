@@ -124,7 +124,10 @@ class NavtechPngDataset(NavtechDataset):
         first = read_navtech_png(self.scan_paths[0])
         check_rows_against_name(self.scan_paths[0], first.timestamps_ns)
         self.shape = (rows, cols)
-        rotation_hz = rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows)
+        try:
+            rotation_hz = rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows)
+        except DatasetError as e:
+            raise DatasetError(f"{self.scan_paths[0]}: {e}") from None
         check_turn_period(1.0 / rotation_hz, f"{self.folder / 'radar'}: {len(self.scan_paths)} scan(s) "
                           f"{self.scan_paths[0].name}-{self.scan_paths[-1].name}")
         self.config = navtech_config(
