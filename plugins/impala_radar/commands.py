@@ -27,8 +27,8 @@ def _duration_s(text: str) -> float:
         v = float(t) * scale
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a duration: {text!r} (e.g. 60s, 2min)") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"duration must be positive: {text!r}")
+    if not 0 < v <= 86_400.0:  # finite: a simulated mission of at most a day
+        raise argparse.ArgumentTypeError(f"duration must be positive and at most a day: {text!r}")
     return v
 
 

@@ -17,7 +17,13 @@ from typing import Any
 from impala_flow import Output, Param, Source
 from impala_flow.msgs import ObjectStates, Pose2D, RadarBeam, Speed, YawRate
 
-from .datasets.common import DB_PER_COUNT_MAX, RANGE_OFFSET_MAX_BINS, RANGE_RESOLUTION_MAX_M
+from .datasets.common import (
+    DB_PER_COUNT_MAX,
+    MAX_MISSION_SPAN_S,
+    RANGE_OFFSET_MAX_BINS,
+    RANGE_RESOLUTION_MAX_M,
+    UNIX_S_MAX,
+)
 from .datasets.oxford import OXFORD_AZIMUTH_OFFSET_DEG, OXFORD_RANGE_RESOLUTION_M
 from .datasets.radiate import RADIATE_AZIMUTH_OFFSET_DEG, RADIATE_GPS_OFFSET_S
 
@@ -174,7 +180,10 @@ def epoch_ns(text: str) -> int:
     if d.tzinfo is None:
         d = d.replace(tzinfo=datetime.UTC)
     delta = d - datetime.datetime(1970, 1, 1, tzinfo=datetime.UTC)
-    return (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
+    t_ns = (delta.days * 86_400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1_000
+    if not 0 <= t_ns <= UNIX_S_MAX * 1_000_000_000:  # mission times are int64 ns, never negative
+        raise ValueError(f"epoch_utc {text!r}: expected a date from 1970 to 2100")
+    return t_ns
 
 
 #: source class of each dataset format of ``impala-flow import``
@@ -194,7 +203,8 @@ class Simulator(Source):
 
     scenario = Param(str, default="beynes", path="read_or_name", doc="scenario name or YAML file")
     seed = Param(int, default=-1, doc="random seed of the world and the sensor noise (-1: the scenario's)")
-    duration_s = Param(float, default=0.0, ge=0.0, doc="mission duration (0: the scenario's)")
+    duration_s = Param(float, default=0.0, ge=0.0, le=MAX_MISSION_SPAN_S, doc="mission duration (0: the scenario's; "
+                       "at most a day)")
     epoch_utc = Param(str, default=DEFAULT_EPOCH, doc="UTC date and time of the mission's start "
                       "(ISO 8601, e.g. 2026-01-01T00:00:00Z); empty: t = 0")
     beams = Output(RadarBeam, doc="radar beams, each at the vehicle pose of its own time")
@@ -212,9 +222,9 @@ class Simulator(Source):
     built: Any = None  # the loaded scenario (world, trajectory, sensors), built once
 
     def start(self) -> None:
+        self.epoch_ns = epoch_ns(self.epoch_utc)  # checked before the world is built
         if self.built is None:
             self.built = self._scenario()
-        self.epoch_ns = epoch_ns(self.epoch_utc)
 
     def generate(self) -> Iterator[tuple[int, str, Any]]:
         e = self.epoch_ns

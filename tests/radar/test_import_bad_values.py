@@ -360,3 +360,20 @@ def test_one_scan_whose_rows_share_one_time_is_named(folder, capsys):
     navtech_png(folder / "radar" / f"{t}.png", t, times_us=np.full(400, t, np.int64))
     assert _fails("oxford", folder, capsys).endswith(f"{folder / 'radar' / f'{t}.png'}: cannot measure the rotation "
                                                      "rate: one scan whose rows share one time")
+
+
+@pytest.mark.parametrize(("extra", "says"), [
+    (["--duration", "2s", "--epoch-utc", "9999-12-31T00:00:00Z"],
+     "epoch_utc '9999-12-31T00:00:00Z': expected a date from 1970 to 2100"),
+    (["--duration", "2s", "--epoch-utc", "1900-01-01T00:00:00Z"],
+     "epoch_utc '1900-01-01T00:00:00Z': expected a date from 1970 to 2100"),
+    (["--duration", "inf"], "argument --duration: duration must be positive and at most a day: 'inf'"),
+])
+def test_simulate_times_beyond_int64_ns_are_refused_before_any_work(tmp_path, capsys, extra, says):
+    """A year-9999 epoch once failed on the first sample (int64 overflow), 1900 on the recorder."""
+    out = tmp_path / "sim.mcap"
+    try:
+        code = main(["simulate", "beynes", "-o", str(out), "--no-progress", *extra])
+    except SystemExit as e:  # argparse's own usage error
+        code = e.code
+    assert code == 2 and capsys.readouterr().err.strip().splitlines()[-1].endswith(says) and not out.exists()
