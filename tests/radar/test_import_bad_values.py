@@ -6,6 +6,7 @@ where the reader has a drop-and-count policy, dropped and counted. Synthetic fol
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -329,13 +330,16 @@ def test_radiate_index_files_that_are_no_text(folder, capsys):
                                                       "lines")
 
 
-@pytest.mark.parametrize("kind", ["folder", "binary"])
+@pytest.mark.parametrize("kind", ["folder", "binary", "pipe"])
 def test_radiate_gps_file_that_is_no_text(folder, capsys, kind):
     paths = _radiate_with_gps(folder)
     paths[10].unlink()
     if kind == "folder":
         paths[10].mkdir()
         says = "a folder, expected a GPS/IMU text file"
+    elif kind == "pipe":  # once: the import blocked on it forever
+        os.mkfifo(paths[10])
+        says = "not a regular file (device, pipe or socket), expected a GPS/IMU text file"
     else:
         paths[10].write_bytes(b"55.9, -3.2, 115.0\n\xc3\x28\n")
         says = "line 2: byte 0xc3 is not text"

@@ -79,7 +79,9 @@
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -320,13 +322,21 @@ def read_gps_imu(folder: Path, frames: np.ndarray) -> tuple[np.ndarray, np.ndarr
     base = str(folder / "GPS_IMU_Twist")  # plain strings: 4000 files, pathlib would double the time
     for i, fr in enumerate(frames.tolist()):
         name = f"{base}/{fr:06d}.txt"
-        try:
-            with open(name) as f:
-                text = f.read()
+        try:  # non-blocking: a pipe named like a fix must not hang the import
+            fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK)
         except FileNotFoundError:
             continue
-        except (OSError, UnicodeDecodeError):  # a folder, unreadable, binary: said with the file and line
+        except OSError:
+            fd = -1
+        try:
+            if fd < 0 or not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise OSError
+            text = os.read(fd, _GPS_FILE_MAX_BYTES).decode("utf-8")  # the 5 lines read are the first 300 bytes
+        except (OSError, UnicodeDecodeError):  # a folder, a pipe, unreadable, binary: said with the file and line
             text = read_text(Path(name), "a GPS/IMU text file")
+        finally:
+            if fd >= 0:
+                os.close(fd)
         head = text.split("\n", 5)[:5]
         try:  # the common case in one go; any doubt goes through _fields for a located message
             vals = [float(v) for v in " ".join(head).replace(",", " ").split()]
@@ -344,6 +354,7 @@ def read_gps_imu(folder: Path, frames: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return rows, found
 
 
+_GPS_FILE_MAX_BYTES = 1 << 16
 #: what a GPS fix may hold: WGS-84 degrees, altitude (m; the Dead Sea to the highest roads and beyond),
 #: position variances (m^2, >= 0: ROS writes zeros when unknown)
 _FIX_BOUNDS = ((0, "latitude", -90.0, 90.0, "deg"), (1, "longitude", -180.0, 180.0, "deg"),
