@@ -166,8 +166,45 @@ def _check_shape(path: Path, rows: int, cols: int, shape: tuple[int, int] | None
                            f"like the first scan")
 
 
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+
+
+def _check_chunks(path: Path, data: bytes, rows: int, cols: int) -> None:
+    """Every chunk's CRC, and the image data inflating to exactly what an 8-bit grey ``rows`` x
+    ``cols`` image holds (a filter byte per row; Adam7 passes when interlaced), never more:
+    Pillow takes a zlib stream that ends early for the whole image and leaves the rows it
+    lacks at 0, so a scan cut short would pass unnoticed."""
+    if data[28]:  # interlace method (IHDR byte 12)
+        expected = sum(h * (w + 1) for x0, y0, dx, dy in _ADAM7
+                       if (w := -(-(cols - x0) // dx)) > 0 and (h := -(-(rows - y0) // dy)) > 0)
+    else:
+        expected = rows * (cols + 1)
+    z, got, pos = zlib.decompressobj(), 0, 8
+    try:
+        while pos + 12 <= len(data):
+            length, kind = struct.unpack_from(">I4s", data, pos)
+            body = data[pos + 8:pos + 8 + length]
+            if len(body) != length or zlib.crc32(data[pos + 4:pos + 8 + length]) != struct.unpack_from(
+                    ">I", data, pos + 8 + length)[0]:
+                raise DatasetError(f"{path}: corrupt PNG (chunk {kind.decode('latin-1')!r} at byte {pos}: "
+                                   "length or CRC wrong)")
+            if kind == b"IDAT":
+                got += len(z.decompress(body, expected + 1 - got))
+                if got > expected or z.unconsumed_tail:
+                    raise DatasetError(f"{path}: corrupt PNG (more image data than the {rows} x {cols} pixels "
+                                       "its header declares)")
+            pos += 12 + length
+        got += len(z.flush(expected + 1 - got))
+    except zlib.error as e:
+        raise DatasetError(f"{path}: cannot decode the PNG (image data: {e})") from None
+    if got != expected:
+        raise DatasetError(f"{path}: cannot decode the PNG (image data for {got // (cols + 1)} of the {rows} rows "
+                           "its header declares)")
+
+
 def _decode(path: Path, data: bytes, rows: int, cols: int) -> np.ndarray:
     """Decode ``data`` (a PNG whose header :func:`_ihdr` checked: rows x cols, 8-bit grey)."""
+    _check_chunks(path, data, rows, cols)
     # Pillow, not OpenCV: libpng under OpenCV prints its errors on stderr and returns None without a reason
     try:
         with warnings.catch_warnings():
