@@ -223,8 +223,11 @@ def _simulate(args: argparse.Namespace) -> int:
         sim.start()  # loads and checks the scenario now, for a one-line usage error
     except (FileNotFoundError, ValueError, KeyError) as e:
         raise CommandError(f"scenario {args.scenario!r}: {e}", EXIT_USAGE) from None
-    return write_output(out, args.overwrite, lambda tmp: record_source(
+    code = write_output(out, args.overwrite, lambda tmp: record_source(
         session, sim, tmp, SIM_TOPICS, args.compression, progress=False if args.no_progress else None))
+    if code == 0:
+        print(f"simulated:    {out} (recorded as the summary's .part file, renamed when complete)")
+    return code
 
 
 def _dataset_error(e: BaseException) -> BaseException | None:
