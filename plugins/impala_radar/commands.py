@@ -77,6 +77,13 @@ def check_output(output: str, inputs: list[tuple[str, str]], overwrite: bool) ->
         raise CommandError(f"-o '{output}': its folder cannot be created, '{parent}' is a file", EXIT_USAGE)
     if not os.access(parent, os.W_OK | os.X_OK):
         raise CommandError(f"-o '{output}': no permission to write in '{parent}'", EXIT_USAGE)
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if len(os.fsencode(out.name)) > name_max:
+        raise CommandError(f"-o: a file name of {len(os.fsencode(out.name))} bytes, longer than the file system "
+                           f"allows ({name_max})", EXIT_USAGE)
     return out
 
 
@@ -95,8 +102,13 @@ def write_output(out: Path, overwrite: bool, write: Callable[[str], int]) -> int
     try:
         for folder in reversed(made):
             folder.mkdir()
-        tmp = out.with_name(f".{out.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # ours alone, mode from the umask
+        tmp = out.with_name(f".{out.name[:100]}.{os.getpid()}.{secrets.token_hex(4)}.part")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # ours alone, mode from the umask
+        except OSError as e:
+            tmp = None
+            raise CommandError(f"-o '{out}': cannot create a file in '{out.parent}' ({e.strerror or e})",
+                               EXIT_USAGE) from None
         code = write(str(tmp))
         if code == 0:
             _publish(tmp, out, overwrite)

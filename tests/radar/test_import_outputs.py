@@ -190,3 +190,9 @@ def test_simulate_refuses_its_scenario_file_and_an_existing_output(tmp_path, cap
     # replaced by the same run: the same bytes (the temporary name leaves no trace in the file)
     assert main(["simulate", str(scenario), "-o", str(out), "--duration", "1s", "--no-progress", "--overwrite"]) == 0
     assert _sha(out) == first and not list(tmp_path.glob(".*part"))
+
+
+def test_a_file_name_too_long_is_refused_before_any_work(dataset, tmp_path, capsys):
+    out = tmp_path / ("m" * 251 + ".mcap")  # 256 bytes: one more than Linux file systems allow
+    line = _refused(capsys, "import", "oxford", str(dataset), "-o", str(out))
+    assert line.endswith("-o: a file name of 256 bytes, longer than the file system allows (255)")
