@@ -139,6 +139,7 @@ def _folder(path):
     (_jpeg, "not a PNG (JPEG image)"),
     (lambda p: p.write_text("timestamp,range\n1,2\n"), "not a PNG (text)"),
     (lambda p: p.write_bytes(b""), "empty file (0 bytes), not a PNG"),
+    (lambda p: p.write_bytes(b"\0" * 4096), "not a PNG (unknown binary data)"),
     (_folder, "a folder, not a PNG file"),
     (_corrupt_data, "cannot decode the PNG ("),
     (_short_data, "cannot decode the PNG (image data for 10 of the 400 rows its header declares)"),

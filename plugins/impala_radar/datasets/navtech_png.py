@@ -74,10 +74,10 @@ def _sniff(head: bytes) -> str:
         if head.startswith(magic):
             return kind
     try:
-        head.decode("utf-8")
-    except UnicodeDecodeError:
+        text = head.decode("utf-8")
+    except UnicodeDecodeError:  # (a character cut at the end of the head passes as binary data)
         return "unknown binary data"
-    return "text"
+    return "text" if all(c.isprintable() or c in "\t\r\n" for c in text) else "unknown binary data"
 
 
 def _open_scan(path: Path, whole: bool) -> tuple[bytes, bytes]:
