@@ -16,6 +16,12 @@ Geometry (each a reader parameter):
 * **Range.** The datasets' SDKs put bin k at its centre, ``(k + 0.5) resolution``:
   ``RadarConfig.range_offset_m = range_offset_bins * resolution`` with
   ``range_offset_bins = 0.5`` by default.
+
+Reading (here for RADIATE's plain polar PNGs too): a scan file is checked before anything is
+decoded, from its kind (a folder, pipe or device is never opened), its size, its PNG header
+(signature, IHDR and its CRC, at most :data:`MAX_SCAN_BYTES` of pixels: no decompression bomb)
+and its chunks (every CRC, image data inflating to exactly the declared size); every failure
+is a :class:`DatasetError` naming the file, which ``--skip-bad-scans`` skips.
 """
 
 from __future__ import annotations
