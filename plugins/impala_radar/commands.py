@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import secrets
+import stat
+from collections.abc import Callable
 from pathlib import Path
 
 from impala_flow.cli import EXIT_FAILED, EXIT_USAGE, CommandError
 from impala_flow.cli._common import open_session, record_source
+from impala_flow.paths import output_clash
 
 from .sources import DATASET_SOURCES, DATASET_TOPICS, SIM_TOPICS, Simulator
 
@@ -32,6 +36,116 @@ def _duration_s(text: str) -> float:
     return v
 
 
+def _output_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap); written as a hidden "
+                   "'.NAME.*.part' beside it and renamed when complete, so a failed or interrupted run leaves "
+                   "nothing. Refused before any work: a path equal to, inside or over an input, an existing "
+                   "folder, device or pipe, and an existing file unless --overwrite")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output file (only once the new one is complete)")
+
+
+def check_output(output: str, inputs: list[tuple[str, str]], overwrite: bool) -> Path:
+    """``output`` as a path, or a one-line :class:`CommandError` (exit 2) before any work: it
+    is, lies inside or holds one of ``inputs`` (links resolved), it exists and is not a
+    regular file (a folder, device, pipe, broken link: never replaced), it is an existing file
+    and ``overwrite`` is not set, or its folder cannot be created."""
+    if not output.strip():
+        raise CommandError("-o: empty path", EXIT_USAGE)
+    clash = output_clash(output, inputs)
+    if clash:
+        raise CommandError(f"-o {clash}", EXIT_USAGE)
+    out = Path(output)
+    try:
+        st = out.stat() if os.path.lexists(out) else None
+    except OSError as e:  # a link to nothing or into a folder we may not read
+        raise CommandError(f"-o '{output}': {e.strerror or e} (a link to nothing?): not replaced", EXIT_USAGE) from None
+    if st is not None:
+        if stat.S_ISDIR(st.st_mode):
+            raise CommandError(f"-o '{output}' is a folder: give a file name, e.g. '{out / 'mission.mcap'}'",
+                               EXIT_USAGE)
+        if not stat.S_ISREG(st.st_mode):
+            raise CommandError(f"-o '{output}' exists and is not a regular file (device, pipe or socket): "
+                               "never replaced; write elsewhere", EXIT_USAGE)
+        if not overwrite:
+            raise CommandError(f"-o '{output}' exists: --overwrite replaces it (once the new file is complete)",
+                               EXIT_USAGE)
+    parent = out.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise CommandError(f"-o '{output}': its folder cannot be created, '{parent}' is a file", EXIT_USAGE)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise CommandError(f"-o '{output}': no permission to write in '{parent}'", EXIT_USAGE)
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    if len(os.fsencode(out.name)) > name_max:
+        raise CommandError(f"-o: a file name of {len(os.fsencode(out.name))} bytes, longer than the file system "
+                           f"allows ({name_max})", EXIT_USAGE)
+    return out
+
+
+def write_output(out: Path, overwrite: bool, write: Callable[[str], int]) -> int:
+    """Run ``write(tmp)`` on a new hidden file beside ``out`` and rename it to ``out`` only when
+    it returns 0; on any failure or interruption the file is removed, and so are the folders
+    made for it (when still empty). Without ``overwrite`` the rename never replaces a file that
+    appeared meanwhile. Returns ``write``'s exit code."""
+    made: list[Path] = []
+    d = out.absolute().parent
+    while not d.exists():
+        made.append(d)
+        d = d.parent
+    tmp: Path | None = None
+    done = False
+    try:
+        for folder in reversed(made):
+            folder.mkdir()
+        tmp = out.with_name(f".{out.name[:100]}.{os.getpid()}.{secrets.token_hex(4)}.part")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # ours alone, mode from the umask
+        except OSError as e:
+            tmp = None
+            raise CommandError(f"-o '{out}': cannot create a file in '{out.parent}' ({e.strerror or e})",
+                               EXIT_USAGE) from None
+        code = write(str(tmp))
+        if code == 0:
+            _publish(tmp, out, overwrite)
+            done = True
+        return code
+    finally:
+        if not done:
+            if tmp is not None:
+                tmp.unlink(missing_ok=True)
+            for folder in made:  # deepest first; never a folder that is not empty
+                try:
+                    folder.rmdir()
+                except OSError:
+                    break
+
+
+def _publish(tmp: Path, out: Path, overwrite: bool) -> None:
+    if overwrite:
+        st = os.lstat(out) if os.path.lexists(out) else None
+        if st is not None and not (stat.S_ISREG(st.st_mode) or stat.S_ISLNK(st.st_mode)):
+            raise CommandError(f"-o '{out}' became a folder or a device during the run: not replaced")
+        os.replace(tmp, out)
+        return
+    try:
+        os.link(tmp, out)  # atomic, and fails if out exists
+    except FileExistsError:
+        raise CommandError(f"-o '{out}' was created by something else during the run: not overwritten "
+                           "(--overwrite replaces it)") from None
+    except OSError:  # no hard links on this file system
+        if os.path.lexists(out):
+            raise CommandError(f"-o '{out}' was created by something else during the run: not overwritten "
+                               "(--overwrite replaces it)") from None
+        os.replace(tmp, out)
+        return
+    tmp.unlink()
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "simulate", help="simulate a radar mission into an MCAP file",
@@ -44,7 +158,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="scenario name (beynes, campus-open, campus-loop, semi-urban, datmo, urban) "
                    "or YAML file")
-    p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap)")
+    _output_arguments(p)
     p.add_argument("--duration", type=_duration_s, default=None, help="mission length, e.g. 60s, 5min "
                    "(default: the scenario's full length)")
     p.add_argument("--seed", type=int, default=None, help="seed of the world and the sensor noise")
@@ -74,7 +188,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("format", choices=tuple(DATASET_SOURCES), help="dataset format")
     p.add_argument("folder", help="dataset folder (oxford/boreas: holding radar/; radiate: holding Navtech_Polar/)")
-    p.add_argument("-o", "--output", required=True, help="mission file to write (.mcap)")
+    _output_arguments(p)
     p.add_argument("--range-resolution-m", type=float, default=None, metavar="M",
                    help="range per bin (default: oxford 0.0438, measured on the sample's ground truth where the "
                    "dataset's README says 0.0432; boreas by date, 0.0596 before 2021-09-21 and 0.04381 after; "
@@ -101,6 +215,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    from .sim.scenario import ScenarioError, scenario_path
+
+    try:
+        inputs = [(str(scenario_path(args.scenario)), "the scenario file")]
+    except ScenarioError:
+        inputs = []  # reported below, with the valid names
+    out = check_output(args.output, inputs, args.overwrite)
     session = open_session()
     params: dict = {"scenario": args.scenario}
     if args.seed is not None:
@@ -114,8 +235,11 @@ def _simulate(args: argparse.Namespace) -> int:
         sim.start()  # loads and checks the scenario now, for a one-line usage error
     except (FileNotFoundError, ValueError, KeyError) as e:
         raise CommandError(f"scenario {args.scenario!r}: {e}", EXIT_USAGE) from None
-    return record_source(session, sim, args.output, SIM_TOPICS, args.compression,
-                         progress=False if args.no_progress else None)
+    code = write_output(out, args.overwrite, lambda tmp: record_source(
+        session, sim, tmp, SIM_TOPICS, args.compression, progress=False if args.no_progress else None))
+    if code == 0:
+        print(f"simulated:    {out} (recorded as the summary's .part file, renamed when complete)")
+    return code
 
 
 def _dataset_error(e: BaseException) -> BaseException | None:
@@ -132,6 +256,7 @@ def _dataset_error(e: BaseException) -> BaseException | None:
 def _import(args: argparse.Namespace) -> int:
     from .datasets import DatasetError
 
+    out = check_output(args.output, [(args.folder, "the dataset folder")], args.overwrite)
     session = open_session()
     params: dict = {"folder": str(Path(args.folder)), "skip_bad_scans": args.skip_bad_scans}
     if args.range_offset_bins is not None:
@@ -159,21 +284,16 @@ def _import(args: argparse.Namespace) -> int:
         src.open()  # the folder and its first scan, before anything is written
     except DatasetError as e:
         raise CommandError(str(e), EXIT_FAILED) from None
-    out = Path(args.output)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.part")  # renamed on success only
-    try:
-        code = record_source(session, src, str(tmp), DATASET_TOPICS, args.compression,
-                             progress=False if args.no_progress else None, quiet=True)
-    except CommandError as e:
-        tmp.unlink(missing_ok=True)
-        bad = _dataset_error(e)
-        raise CommandError(str(bad) if bad is not None else str(e), e.code) from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    if code != 0:
-        tmp.unlink(missing_ok=True)
-        return code
-    os.replace(tmp, out)
-    print("\n".join([f"imported:     {out}", *src.report.lines()]))
-    return 0
+
+    def record(tmp: str) -> int:
+        try:
+            return record_source(session, src, tmp, DATASET_TOPICS, args.compression,
+                                 progress=False if args.no_progress else None, quiet=True)
+        except CommandError as e:
+            bad = _dataset_error(e)
+            raise CommandError(str(bad) if bad is not None else str(e), e.code) from None
+
+    code = write_output(out, args.overwrite, record)
+    if code == 0:
+        print("\n".join([f"imported:     {out}", *src.report.lines()]))
+    return code

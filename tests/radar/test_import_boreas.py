@@ -86,7 +86,7 @@ def test_truth_straight_drive_is_forward_along_x(tmp_path):
     d = 2.5 * np.arange(4)
     _poses_csv(tmp_path / "applanix" / "radar_poses.csv", t_us, 100 + d * math.cos(h), 50 + d * math.sin(h),
                [math.pi] * 4, [h] * 4)
-    out = tmp_path / "b.mcap"
+    out = tmp_path.parent / f"{tmp_path.name}-b.mcap"  # beside the dataset folder (inside is refused)
     assert main(["import", "boreas", str(tmp_path), "-o", str(out), "--no-progress"]) == 0
     _, _, truth = _read(out)
     assert [t for t, _ in truth] == [t * 1000 for t in t_us]  # GPSTime = PNG name

@@ -40,7 +40,7 @@ def test_help_states_the_oxford_resolution_that_is_applied(tmp_path):
     text = _help()
     said = float(re.search(r"default: oxford (0\.\d+)", text).group(1))
     navtech_folder(tmp_path, n_scans=2)
-    out = tmp_path / "o.mcap"
+    out = tmp_path.parent / f"{tmp_path.name}-o.mcap"  # beside the dataset folder (inside is refused)
     assert main(["import", "oxford", str(tmp_path), "-o", str(out), "--no-progress"]) == 0
     cfg = _beams(out)[0].config
     assert cfg.range_per_bin_m == pytest.approx(said, rel=1e-12) and said == 0.0438
@@ -53,12 +53,12 @@ def test_boreas_range_is_the_documented_bin_times_resolution_minus_0_31_m(tmp_pa
     """Boreas DATA_REFERENCE.md: range_m = bin_index * resolution + radar_offset, radar_offset = -0.31 m,
     for both resolutions; --range-offset-bins still overrides it."""
     navtech_folder(tmp_path, n_scans=1, t0_us=t0_us, n_bins=40, flag=255)
-    out = tmp_path / "b.mcap"
+    out = tmp_path.parent / f"{tmp_path.name}-b.mcap"  # beside the dataset folder (inside is refused)
     assert main(["import", "boreas", str(tmp_path), "-o", str(out), "--no-progress"]) == 0
     cfg = _beams(out)[0].config
     k = np.arange(40)
     assert np.allclose(cfg.range_of_bin_m(k), k * res - 0.31, rtol=0, atol=1e-12)
-    out2 = tmp_path / "b2.mcap"
+    out2 = tmp_path.parent / f"{tmp_path.name}-b2.mcap"
     assert main(["import", "boreas", str(tmp_path), "-o", str(out2), "--no-progress",
                  "--range-offset-bins", "0.5"]) == 0
     assert _beams(out2)[0].config.range_of_bin_m(3) == pytest.approx(3.5 * res, rel=1e-12)
@@ -102,12 +102,12 @@ def test_radiate_azimuth_is_the_sdk_column_angle_clockwise_plus_the_measured_off
     """radiate_sdk: 400 azimuth cells per turn, column 0 forward, clockwise; our beams are CCW with the
     measured mounting offset, -2.3 deg by default (--azimuth-offset-deg overrides)."""
     radiate_folder(tmp_path, ["100.0", "100.25"], rows=8)
-    out = tmp_path / "r.mcap"
+    out = tmp_path.parent / f"{tmp_path.name}-r.mcap"  # beside the dataset folder (inside is refused)
     assert main(["import", "radiate", str(tmp_path), "-o", str(out), "--no-progress"]) == 0
     az = np.array([b.azimuth_rad for b in _beams(out)[:400]])
     j = np.arange(400)
     assert np.allclose(wrap_angle(az - (-2 * np.pi * j / 400 + np.radians(-2.3))), 0.0, atol=1e-12)
-    out2 = tmp_path / "r2.mcap"
+    out2 = tmp_path.parent / f"{tmp_path.name}-r2.mcap"
     assert main(["import", "radiate", str(tmp_path), "-o", str(out2), "--no-progress",
                  "--azimuth-offset-deg", "0"]) == 0
     assert _beams(out2)[1].azimuth_rad == pytest.approx(-2 * np.pi / 400, abs=1e-12)

@@ -17,7 +17,7 @@ TURN_US = 400 * ROW_US  # 0.25 s
 
 
 def _import(fmt, folder, capsys):
-    out = folder / "out.mcap"
+    out = folder.parent / f"{folder.name}-out.mcap"  # inside the dataset: refused
     assert main(["import", fmt, str(folder), "-o", str(out), "--no-progress"]) == 0
     text = capsys.readouterr().out
     with MissionReader(out) as r:

@@ -82,7 +82,9 @@ def test_import_range_resolution_and_azimuth_offset_options(tmp_path):
 
 
 def test_import_rejects_a_folder_without_scans(tmp_path, capsys):
-    assert main(["import", "oxford", str(tmp_path), "-o", str(tmp_path / "x.mcap")]) == 1
+    data = tmp_path / "data"
+    data.mkdir()
+    assert main(["import", "oxford", str(data), "-o", str(tmp_path / "x.mcap")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"impala-flow import: error: {tmp_path}: no radar/ folder of Navtech PNG scans"]
+    assert err == [f"impala-flow import: error: {data}: no radar/ folder of Navtech PNG scans"]
     assert not (tmp_path / "x.mcap").exists()

@@ -16,26 +16,46 @@ Geometry (each a reader parameter):
 * **Range.** The datasets' SDKs put bin k at its centre, ``(k + 0.5) resolution``:
   ``RadarConfig.range_offset_m = range_offset_bins * resolution`` with
   ``range_offset_bins = 0.5`` by default.
+
+Reading (here for RADIATE's plain polar PNGs too): a scan file is checked before anything is
+decoded, from its kind (a folder, pipe or device is never opened), its size, its PNG header
+(signature, IHDR and its CRC, at most :data:`MAX_SCAN_BYTES` of pixels: no decompression bomb)
+and its chunks (every CRC, image data inflating to exactly the declared size); every failure
+is a :class:`DatasetError` naming the file, which ``--skip-bad-scans`` skips.
 """
 
 from __future__ import annotations
 
+import io
+import stat
+import struct
+import warnings
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 
 from impala_flow import msgs
 
 from .common import DatasetError
 
-__all__ = ["ENCODER_SIZE", "HEADER_BYTES", "NavtechScan", "png_header", "read_navtech_png", "ccw_azimuth"]
+__all__ = ["ENCODER_SIZE", "HEADER_BYTES", "MAX_SCAN_BYTES", "NavtechScan", "png_header", "read_navtech_png",
+           "ccw_azimuth", "check_grey8", "decode_grey8"]
 
 ENCODER_SIZE = 5600
 HEADER_BYTES = 11
+#: Largest decoded scan read (bytes): the biggest real scans are 400 x 6859 (Boreas, 2.7 MB), 400 x 3779
+#: (Oxford) and 576 x 400 (RADIATE); a header declaring more is refused before anything is decoded.
+#: Below Pillow's own decompression-bomb limit (89 M pixels), so Pillow never warns on a scan read here.
+MAX_SCAN_BYTES = 64 << 20
+_MAX_FILE_BYTES = 2 * MAX_SCAN_BYTES  # a PNG compresses: a bigger file is no scan either
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"
+_HEAD = 33  # signature (8) + IHDR chunk (4 length + 4 type + 13 data + 4 CRC)
+# PNG colour type -> (channels, name); grey (0) is named by its bit depth
+_COLOUR_TYPES = {0: (1, "grey"), 2: (3, "RGB"), 3: (1, "P"), 4: (2, "LA"), 6: (4, "RGBA")}
 
 
 @dataclass(eq=False)
@@ -52,53 +72,179 @@ class NavtechScan:
     flag: np.ndarray | None = None
 
 
-def png_header(path: str | Path) -> tuple[int, int, str]:
-    """``(rows, columns, PIL mode)`` of a PNG, from its header only; an unreadable or truncated
-    file (no IEND chunk at its end) is a :class:`DatasetError`."""
-    path = Path(path)
+def _sniff(head: bytes) -> str:
+    """What a file that is not a PNG looks like, for the error line."""
+    for magic, kind in ((b"\xff\xd8\xff", "JPEG image"), (b"GIF8", "GIF image"), (b"BM", "BMP image"),
+                        (b"II*\x00", "TIFF image"), (b"MM\x00*", "TIFF image"), (b"RIFF", "RIFF (WebP?) file"),
+                        (b"\x1f\x8b", "gzip file"), (b"PK\x03\x04", "zip file")):
+        if head.startswith(magic):
+            return kind
     try:
-        with Image.open(path) as im:
-            if im.format != "PNG":
-                raise DatasetError(f"{path}: not a PNG ({im.format} image)")
-            width, height, mode = im.size[0], im.size[1], im.mode
+        text = head.decode("utf-8")
+    except UnicodeDecodeError:  # (a character cut at the end of the head passes as binary data)
+        return "unknown binary data"
+    return "text" if all(c.isprintable() or c in "\t\r\n" for c in text) else "unknown binary data"
+
+
+def _open_scan(path: Path, whole: bool) -> tuple[bytes, bytes]:
+    """``(head, data)`` of a scan file: its first :data:`_HEAD` bytes, and either all of it
+    (``whole``) or its last 12 bytes. A folder, a device or pipe, an empty or oversized file
+    is a :class:`DatasetError` (nothing opened that could block or flood memory)."""
+    try:
+        st = path.stat()
+        if stat.S_ISDIR(st.st_mode):
+            raise DatasetError(f"{path}: a folder, not a PNG file")
+        if not stat.S_ISREG(st.st_mode):
+            raise DatasetError(f"{path}: not a regular file (device, pipe or socket), not read")
+        if st.st_size == 0:
+            raise DatasetError(f"{path}: empty file (0 bytes), not a PNG")
+        if st.st_size > _MAX_FILE_BYTES:
+            raise DatasetError(f"{path}: {st.st_size / 2**20:.0f} MiB, larger than any radar scan "
+                               f"({_MAX_FILE_BYTES >> 20} MiB at most): not read")
         with open(path, "rb") as f:
-            f.seek(max(0, path.stat().st_size - 12))
-            if not f.read().endswith(_PNG_END):
-                raise DatasetError(f"{path}: truncated PNG (no IEND chunk at the end of the file)")
-    except (UnidentifiedImageError, OSError) as e:
-        raise DatasetError(f"{path}: cannot read the PNG ({e})") from None
-    return height, width, mode
+            if whole:
+                data = f.read(_MAX_FILE_BYTES + 1)
+                return data[:_HEAD], data
+            head = f.read(_HEAD)
+            f.seek(max(0, st.st_size - len(_PNG_END) - 4))
+            return head, f.read()
+    except OSError as e:
+        raise DatasetError(f"{path}: cannot read the file ({e.strerror or e})") from None
+
+
+def _ihdr(path: Path, head: bytes, data: bytes) -> tuple[int, int, str, int]:
+    """``(rows, columns, mode, decoded bytes)`` from a PNG's first chunk (IHDR), checked
+    (signature, CRC, sizes, IEND at the end) before anything is decoded."""
+    if not head.startswith(_PNG_SIGNATURE):
+        raise DatasetError(f"{path}: not a PNG ({_sniff(head)})")
+    if len(head) < _HEAD:
+        raise DatasetError(f"{path}: truncated PNG ({len(head)} bytes, no complete header)")
+    length, kind = struct.unpack(">I4s", head[8:16])
+    if kind != b"IHDR" or length != 13 or zlib.crc32(head[12:29]) != struct.unpack(">I", head[29:33])[0]:
+        raise DatasetError(f"{path}: corrupt PNG header (IHDR chunk missing or its CRC wrong)")
+    width, height, depth, colour = struct.unpack(">IIBB", head[16:26])
+    if colour not in _COLOUR_TYPES or width == 0 or height == 0:
+        raise DatasetError(f"{path}: corrupt PNG header ({height} x {width} pixels, colour type {colour})")
+    channels, name = _COLOUR_TYPES[colour]
+    mode = {8: "L", 16: "I;16"}.get(depth, f"{depth}-bit grey") if colour == 0 else name
+    decoded = height * ((width * channels * depth + 7) // 8)
+    if decoded > MAX_SCAN_BYTES:
+        raise DatasetError(f"{path}: PNG of {height} rows x {width} columns ({decoded / 2**20:.0f} MiB decoded), "
+                           f"more than any radar scan ({MAX_SCAN_BYTES >> 20} MiB at most): not decoded")
+    if not data.endswith(_PNG_END):
+        raise DatasetError(f"{path}: truncated PNG (no IEND chunk at the end of the file)")
+    return height, width, mode, decoded
+
+
+def png_header(path: str | Path) -> tuple[int, int, str]:
+    """``(rows, columns, PIL mode)`` of a PNG from its header only (nothing decoded). Not a
+    PNG, truncated (no IEND chunk at its end), a folder or device, or declaring more than
+    :data:`MAX_SCAN_BYTES` decoded: a :class:`DatasetError` naming the file."""
+    path = Path(path)
+    head, tail = _open_scan(path, whole=False)
+    rows, cols, mode, _ = _ihdr(path, head, tail)
+    return rows, cols, mode
 
 
 def check_grey8(path: Path, mode: str) -> None:
     if mode != "L":
-        kind = {"I;16": "16-bit grey", "I;16B": "16-bit grey", "I": "32-bit grey", "RGB": "colour (RGB)",
-                "RGBA": "colour (RGBA)", "P": "palette (colour)", "LA": "grey with alpha"}.get(mode, mode)
+        kind = {"I;16": "16-bit grey", "RGB": "colour (RGB)", "RGBA": "colour (RGBA)", "P": "palette (colour)",
+                "LA": "grey with alpha"}.get(mode, mode)
         raise DatasetError(f"{path}: {kind} PNG, expected 8-bit grey")
 
 
-def decode_grey8(path: Path) -> np.ndarray:
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None or img.ndim != 2 or img.dtype != np.uint8:
-        raise DatasetError(f"{path}: cannot decode the PNG as 8-bit grey")
+def decode_grey8(path: Path, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """The 8-bit grey pixels of a PNG (rows x columns, uint8), its header checked first
+    (:func:`png_header`'s checks, 8-bit grey, ``shape`` when given): one read of the file,
+    and nothing bigger than :data:`MAX_SCAN_BYTES` is ever decoded. Any failure is a
+    :class:`DatasetError` naming the file."""
+    path = Path(path)
+    head, data = _open_scan(path, whole=True)
+    rows, cols, mode, _ = _ihdr(path, head, data)
+    check_grey8(path, mode)
+    _check_shape(path, rows, cols, shape)
+    return _decode(path, data, rows, cols)
+
+
+def _check_shape(path: Path, rows: int, cols: int, shape: tuple[int, int] | None) -> None:
+    if shape is not None and (rows, cols) != tuple(shape):
+        raise DatasetError(f"{path}: {rows} rows x {cols} columns, expected {shape[0]} x {shape[1]} "
+                           f"like the first scan")
+
+
+_ADAM7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+
+
+def _check_chunks(path: Path, data: bytes, rows: int, cols: int) -> None:
+    """Every chunk's CRC, and the image data inflating to exactly what an 8-bit grey ``rows`` x
+    ``cols`` image holds (a filter byte per row; Adam7 passes when interlaced), never more:
+    Pillow takes a zlib stream that ends early for the whole image and leaves the rows it
+    lacks at 0, so a scan cut short would pass unnoticed."""
+    if data[28]:  # interlace method (IHDR byte 12)
+        expected = sum(h * (w + 1) for x0, y0, dx, dy in _ADAM7
+                       if (w := -(-(cols - x0) // dx)) > 0 and (h := -(-(rows - y0) // dy)) > 0)
+    else:
+        expected = rows * (cols + 1)
+    z, got, pos = zlib.decompressobj(), 0, 8
+    try:
+        while pos + 12 <= len(data):
+            length, kind = struct.unpack_from(">I4s", data, pos)
+            body = data[pos + 8:pos + 8 + length]
+            if len(body) != length or zlib.crc32(data[pos + 4:pos + 8 + length]) != struct.unpack_from(
+                    ">I", data, pos + 8 + length)[0]:
+                raise DatasetError(f"{path}: corrupt PNG (chunk {kind.decode('latin-1')!r} at byte {pos}: "
+                                   "length or CRC wrong)")
+            if kind == b"IDAT":
+                got += len(z.decompress(body, expected + 1 - got))
+                if got > expected or z.unconsumed_tail:
+                    raise DatasetError(f"{path}: corrupt PNG (more image data than the {rows} x {cols} pixels "
+                                       "its header declares)")
+            pos += 12 + length
+        got += len(z.flush(expected + 1 - got))
+    except zlib.error as e:
+        raise DatasetError(f"{path}: cannot decode the PNG (image data: {e})") from None
+    if got != expected:
+        raise DatasetError(f"{path}: cannot decode the PNG (image data for {got // (cols + 1)} of the {rows} rows "
+                           "its header declares)")
+
+
+def _decode(path: Path, data: bytes, rows: int, cols: int) -> np.ndarray:
+    """Decode ``data`` (a PNG whose header :func:`_ihdr` checked: rows x cols, 8-bit grey)."""
+    _check_chunks(path, data, rows, cols)
+    # Pillow, not OpenCV: libpng under OpenCV prints its errors on stderr and returns None without a reason
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data), formats=["PNG"]) as im:
+                img = np.asarray(im)
+    except (Image.DecompressionBombError, Image.DecompressionBombWarning) as e:
+        raise DatasetError(f"{path}: PNG of {rows} rows x {cols} columns refused by the decoder ({e})") from None
+    except (OSError, ValueError, SyntaxError, struct.error, zlib.error) as e:  # what Pillow raises on bad data
+        raise DatasetError(f"{path}: cannot decode the PNG ({e})") from None
+    if img.shape != (rows, cols) or img.dtype != np.uint8:
+        raise DatasetError(f"{path}: decoded as {img.dtype} {img.shape}, expected 8-bit grey {rows} x {cols}")
     return img
 
 
 def read_navtech_png(path: str | Path, encoder_size: int = ENCODER_SIZE, timestamp_unit_ns: int = 1000,
                      shape: tuple[int, int] | None = None) -> NavtechScan:
     """Decode one Navtech polar PNG (layout in the module doc). ``shape`` (rows, columns), when
-    given, is the shape every scan of the sequence must have. Bad files raise
-    :class:`DatasetError` naming the file (and the row for a bad encoder count)."""
+    given, is the shape every scan of the sequence must have; without it (the first scan) the
+    header must describe at most one row per encoder count. Both are checked on the header,
+    before decoding. Bad files raise :class:`DatasetError` naming the file (and the row for a
+    bad encoder count)."""
     path = Path(path)
-    rows, cols, mode = png_header(path)
+    head, data = _open_scan(path, whole=True)
+    rows, cols, mode, _ = _ihdr(path, head, data)
     check_grey8(path, mode)
     if cols <= HEADER_BYTES:
         raise DatasetError(f"{path}: {rows} x {cols} pixels: no range bins after the {HEADER_BYTES}-byte "
                            f"row header")
-    if shape is not None and (rows, cols) != tuple(shape):
-        raise DatasetError(f"{path}: {rows} rows x {cols} columns, expected {shape[0]} x {shape[1]} "
-                           f"like the first scan")
-    img = decode_grey8(path)
+    if rows > encoder_size:
+        raise DatasetError(f"{path}: {rows} rows, more than the {encoder_size} encoder counts of a turn (one row "
+                           f"per azimuth): not decoded")
+    _check_shape(path, rows, cols, shape)
+    img = _decode(path, data, rows, cols)
     stamps = np.ascontiguousarray(img[:, :8]).view("<i8")[:, 0].astype(np.int64)
     encoder = np.ascontiguousarray(img[:, 8:10]).view("<u2")[:, 0]
     bad = np.flatnonzero(encoder >= encoder_size)
