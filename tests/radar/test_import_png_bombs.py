@@ -92,6 +92,28 @@ def test_a_first_scan_of_40000_rows_is_refused_before_decoding(folder, capfd):
         f"{paths[0]}: 6000 rows, more than the 5600 encoder counts of a turn (one row per azimuth): not decoded")
 
 
+@pytest.mark.parametrize("fmt", ["oxford", "radiate"])
+def test_a_bad_first_scan_is_skipped_and_the_others_keep_their_shape(folder, capfd, fmt):
+    """The first scan no longer sets the shape alone: with --skip-bad-scans a bomb in first place is skipped
+    like any other, and the remaining scans import whole (their own shape, every row)."""
+    if fmt == "oxford":
+        paths = navtech_folder(folder, n_scans=3)
+        rows = 400
+    else:
+        paths = radiate_folder(folder, ["100.0", "100.25", "100.5"], rows=30)
+        rows = 400  # azimuths: the PNG's columns
+    paths[0].write_bytes(_bomb(50_000, 50_000))
+    code, out = _import(fmt, folder)
+    assert code == 1 and not out.exists()
+    assert _one_error_line(capfd).endswith(f"{paths[0]}: PNG of 50000 rows x 50000 columns (2384 MiB decoded), "
+                                           "more than any radar scan (64 MiB at most): not decoded")
+    code, out = _import(fmt, folder, "--skip-bad-scans")
+    text = capfd.readouterr().out
+    assert code == 0 and out.exists(), text
+    assert "turns:        2" in text and f"beams:        {2 * rows}" in text
+    assert f"scans skipped: 1 ({paths[0]}: PNG of 50000 rows" in text
+
+
 def test_a_radiate_bomb_is_refused_and_skipped(folder, capfd):
     paths = radiate_folder(folder, ["100.0", "100.25", "100.5"], rows=30)
     paths[1].write_bytes(_bomb(576, 200_000))  # 110 MiB declared

@@ -42,7 +42,7 @@ from impala_flow import msgs
 from .common import DatasetError
 
 __all__ = ["ENCODER_SIZE", "HEADER_BYTES", "MAX_SCAN_BYTES", "NavtechScan", "png_header", "read_navtech_png",
-           "ccw_azimuth", "check_grey8", "decode_grey8"]
+           "ccw_azimuth", "check_grey8", "decode_grey8", "reference_scan"]
 
 ENCODER_SIZE = 5600
 HEADER_BYTES = 11
@@ -144,6 +144,36 @@ def png_header(path: str | Path) -> tuple[int, int, str]:
     head, tail = _open_scan(path, whole=False)
     rows, cols, mode, _ = _ihdr(path, head, tail)
     return rows, cols, mode
+
+
+#: How many scans' headers :func:`reference_scan` reads to find the dataset's scan shape.
+REFERENCE_TRIES = 5
+
+
+def reference_scan(paths: list[Path], grey8: bool = False) -> tuple[int, tuple[int, int, str]]:
+    """``(index, (rows, columns, mode))`` of the scan whose shape the dataset's scans share: the
+    shape most of the first :data:`REFERENCE_TRIES` readable headers have (ties: the earliest),
+    so one bad or odd first scan neither fails the import (``--skip-bad-scans`` then skips it
+    where it is read) nor sets a wrong shape for the others. No readable header among the
+    first ones: the first scan's :class:`DatasetError`."""
+    seen: list[tuple[int, tuple[int, int, str]]] = []
+    first_error: DatasetError | None = None
+    for k, path in enumerate(paths):
+        if len(seen) == REFERENCE_TRIES or (k >= 4 * REFERENCE_TRIES and not seen):
+            break
+        try:
+            rows, cols, mode = png_header(path)
+            if grey8:
+                check_grey8(path, mode)
+        except DatasetError as e:
+            first_error = first_error or e
+            continue
+        seen.append((k, (rows, cols, mode)))
+    if not seen:
+        raise first_error if first_error is not None else DatasetError("no scan to read")
+    shapes = [h for _, h in seen]
+    best = max(shapes, key=lambda h: (shapes.count(h), -shapes.index(h)))
+    return next((k, h) for k, h in seen if h == best)
 
 
 def check_grey8(path: Path, mode: str) -> None:

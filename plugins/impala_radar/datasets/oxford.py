@@ -46,7 +46,7 @@ from .common import (
     time_steps_back,
     unix_times_ns,
 )
-from .navtech_png import ccw_azimuth, png_header, read_navtech_png, rotation_hz_of
+from .navtech_png import ccw_azimuth, read_navtech_png, reference_scan, rotation_hz_of
 
 __all__ = ["OXFORD_RANGE_RESOLUTION_M", "OXFORD_AZIMUTH_OFFSET_DEG", "OXFORD_README_RESOLUTION_M",
            "OxfordDataset", "OxfordRelativePoses", "read_oxford_ground_truth",
@@ -120,14 +120,14 @@ class NavtechPngDataset(NavtechDataset):
         self.scan_stamps_us = [s for s, _ in stamped]
         self.scan_paths = [p for _, p in stamped]
         check_span(np.array(self.scan_stamps_us, dtype=np.int64) * 1000, f"{self.folder / 'radar'} (scan names)")
-        rows, cols, _ = png_header(self.scan_paths[0])
-        first = read_navtech_png(self.scan_paths[0])
-        check_rows_against_name(self.scan_paths[0], first.timestamps_ns)
+        k0, (rows, cols, _) = reference_scan(self.scan_paths)  # a bad first scan is skipped where it is read
+        first = read_navtech_png(self.scan_paths[k0])
+        check_rows_against_name(self.scan_paths[k0], first.timestamps_ns)
         self.shape = (rows, cols)
         try:
             rotation_hz = rotation_hz_of([s * 1000 for s in self.scan_stamps_us], first.timestamps_ns, rows)
         except DatasetError as e:
-            raise DatasetError(f"{self.scan_paths[0]}: {e}") from None
+            raise DatasetError(f"{self.scan_paths[k0]}: {e}") from None
         check_turn_period(1.0 / rotation_hz, f"{self.folder / 'radar'}: {len(self.scan_paths)} scan(s) "
                           f"{self.scan_paths[0].name}-{self.scan_paths[-1].name}")
         self.config = navtech_config(

@@ -110,7 +110,7 @@ from .common import (
     t_text,
     time_steps_back,
 )
-from .navtech_png import check_grey8, decode_grey8, png_header
+from .navtech_png import check_grey8, decode_grey8, png_header, reference_scan
 
 __all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RADIATE_GPS_OFFSET_S", "RadiateDataset",
            "FrameIndex", "read_frame_times", "read_gps_imu", "geodetic_to_en", "turn_clock", "course_over_ground",
@@ -454,8 +454,7 @@ class RadiateDataset(NavtechDataset):
         if unlisted:
             report.notes.append(f"{len(unlisted)} PNG file(s) in Navtech_Polar/ without a time in "
                                 f"Navtech_Polar.txt, not read")
-        rows, cols, mode = png_header(self.scan_paths[0])
-        check_grey8(self.scan_paths[0], mode)
+        _, (rows, cols, _) = reference_scan(self.scan_paths, grey8=True)  # a bad first scan: skipped where read
         self.shape = (rows, cols)
         self.period_ns = int(round(period))
         if idx.t_ns.size < 2:
