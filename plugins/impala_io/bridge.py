@@ -62,16 +62,23 @@ MIN_BACKLOG = 8  # messages per client: the SDK disconnects a client whose contr
 # are the records the bridge reads (client connections, full outboxes) or aggregates (invalid
 # frames); the INFO ones are raised to INFO here, read, and never printed.
 _SERVER_LOG = "foxglove.websocket.server"
-_CLIENT_LOG = "foxglove.websocket.connected_client"
 _OUTBOX_LOG = "foxglove.websocket.connected_client.send_lossy"
+_WATCHED = (_SERVER_LOG, _OUTBOX_LOG, "foxglove.websocket.connected_client", "foxglove.websocket.advertise",
+            "foxglove.websocket.connected_client.poller", "foxglove.websocket_server")  # every one that warns
 _ADDR = re.compile(r"\[?[0-9a-fA-F.:]+\]?:\d+")
 
 
+def _kind(msg: str) -> str:
+    """A log line without what varies between occurrences (client addresses, numbers)."""
+    return re.sub(r"\d+", "N", _ADDR.sub("ADDR", msg))[:200]
+
+
 class _SdkLog(logging.Filter):
-    """One per process (loggers are): counts the SDK's connected clients, full outboxes and
-    invalid client frames for every live bridge; lets the first invalid frame of each kind
-    through and swallows the rest. Clients are counted over every server of the process (the
-    records name the client, not the server): a conservative count for ``max_clients``."""
+    """One per process (loggers are): counts the SDK's connected clients and full outboxes for
+    every live bridge, and its warnings and errors by kind (an invalid frame, a failed handshake,
+    a subscription to an unknown channel: one line per occurrence from the SDK): lets the first
+    of each kind through and swallows the rest. Clients are counted over every server of the
+    process (the records name the client, not the server): a conservative count."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -95,18 +102,16 @@ class _SdkLog(logging.Filter):
         elif name == _OUTBOX_LOG and "full" in msg:
             for b in list(self.bridges):
                 b._slow_client()
-        elif name == _CLIENT_LOG and record.levelno >= logging.ERROR and msg.startswith("Invalid message from "):
-            kind = "invalid frame from a client: " + _ADDR.sub("ADDR", msg.split(": ", 1)[-1])
-            kind = re.sub(r"\d+", "N", kind)[:200]
-            first = False
-            for b in list(self.bridges):
-                first = b._client_error(kind) or first
-            if not self.bridges:
-                return True
-            if first:
-                record.msg, record.args = msg + " (further invalid frames of this kind are counted, not logged)", None
-            return first
-        return record.levelno >= logging.WARNING
+        if record.levelno < logging.WARNING:  # raised to INFO to be read here: printed only if asked (--debug)
+            return logging.getLogger().isEnabledFor(record.levelno)
+        bridges = list(self.bridges)
+        if not bridges:
+            return True
+        kind = _kind(msg)
+        if not [b for b in bridges if b._client_error(kind)]:
+            return False
+        record.msg, record.args = msg + " (further ones of this kind are counted, not logged)", None
+        return True
 
 
 _SDK_LOG: _SdkLog | None = None
@@ -116,10 +121,10 @@ def _watch_sdk_log() -> _SdkLog:
     global _SDK_LOG
     if _SDK_LOG is None:
         _SDK_LOG = _SdkLog()
-        for name in (_SERVER_LOG, _CLIENT_LOG, _OUTBOX_LOG):
+        for name in _WATCHED:
             logger = logging.getLogger(name)
             logger.addFilter(_SDK_LOG)
-            if name != _CLIENT_LOG:
+            if name in (_SERVER_LOG, _OUTBOX_LOG):
                 logger.setLevel(logging.INFO)  # before the SDK's first record: pyo3-log caches levels
     return _SDK_LOG
 
@@ -182,7 +187,8 @@ class FoxgloveBridge(Component):
         if not any(a.rsplit(":", 1)[-1] == str(self.bound_port) for a in self._sdk_log.started):
             log.warning("%s: the foxglove SDK's log does not reach Python logging here: clients are not counted "
                         "(max_clients=%d not enforced)", self.name, self.max_clients)
-        where = f"ws://{self.host}:{self.bound_port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host  # IPv6
+        where = f"ws://{host}:{self.bound_port}"
         log.info("Foxglove: open a connection to %s", where)
         if self.announce:
             every = " (every interface)" if self.host in ("0.0.0.0", "::") else ""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 import signal
+import socket
 import struct
 import subprocess
 import sys
@@ -266,9 +267,14 @@ def test_oversized_messages_and_extra_clients_are_dropped_and_counted_per_topic(
 
 
 def test_invalid_frames_are_one_error_line_per_kind_with_a_count(mission: Path) -> None:
-    """600 invalid frames of two kinds: the SDK's ERROR per frame (59 000 lines in 20 s before)
-    is one line per kind, and the summary counts each kind."""
+    """20 plain HTTP requests and 600 invalid frames of two kinds: the SDK's ERROR line per
+    occurrence (59 000 lines in 20 s before) is one line per kind, and the summary counts each."""
     p, port, lines = _start_view(mission, "--speed", "1", "--loop")
+    for _ in range(20):  # not WebSocket: the SDK drops the connection
+        with socket.create_connection(("127.0.0.1", port), timeout=60) as http:
+            http.sendall(b"GET / HTTP/1.0\r\n\r\n")
+            while http.recv(4096):
+                pass
     with _client(port) as ws:
         _advertised(ws, set())
         answered = 0
@@ -281,10 +287,11 @@ def test_invalid_frames_are_one_error_line_per_kind_with_a_count(mission: Path) 
                 answered += isinstance(msg, str) and json.loads(msg).get("op") == "status"
     text = _stop(p, lines)
     assert answered == 600
-    errors = [line for line in text.splitlines() if "Invalid message" in line]
-    assert len(errors) == 2, errors
-    assert "'invalid frame from a client: Unknown binary opcode N': 300" in text, text
-    assert "'invalid frame from a client: key must be a string at line N column N': 300" in text, text
+    errors = [line for line in text.splitlines() if line.startswith("ERROR")]
+    assert len(errors) == 3 and sum("Invalid message from" in e for e in errors) == 2, text
+    assert "'Invalid message from ADDR: Unknown binary opcode N': 300" in text, text
+    assert "'Invalid message from ADDR: key must be a string at line N column N': 300" in text, text
+    assert "'Dropping client ADDR: handshake failed': 20" in text, text
 
 
 def test_the_view_listens_on_loopback_and_says_where(mission: Path) -> None:
@@ -300,8 +307,6 @@ def test_the_view_listens_on_loopback_and_says_where(mission: Path) -> None:
 
 
 def test_a_port_in_use_or_a_bad_host_is_one_line(mission: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    import socket
-
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
