@@ -324,6 +324,8 @@ def test_a_port_in_use_or_a_bad_host_is_one_line(mission: Path, capsys: pytest.C
     (["--client-mb", "-1"], "--client-mb -1"), (["--max-message-mb", "x"], "--max-message-mb 'x'"),
     (["--client-mb", "16", "--max-message-mb", "8"], "--client-mb 16: holds 2 message(s)"),
     (["--max-message-mb", "0.0001"], "--max-message-mb 0.0001"), (["--max-clients", "0"], "--max-clients 0"),
+    (["--max-clients", "1.5"], "--max-clients '1.5'"), (["--port", "abc"], "--port 'abc'"),
+    (["--port", "70000"], "--port 70000"),
 ])
 def test_bad_budgets_are_one_line_exit_2(mission: Path, capsys: pytest.CaptureFixture[str], args: list[str],
                                          where: str) -> None:
