@@ -16,7 +16,7 @@ the same way a recording shows it (:mod:`impala_flow.io.foxglove`):
 The graph never waits for a client, and the memory the server holds is bounded in bytes, by
 construction. The SDK's sender keeps, per client, at most ``backlog`` messages and drops the
 oldest beyond (a slow client loses samples, not the graph its pace); the bridge derives that
-``backlog`` from a byte budget, ``client_bytes // max_message_bytes``, and never sends a
+``backlog`` from a byte budget, ``client_bytes // max_message_bytes`` (8 to 1024), and never sends a
 message over ``max_message_bytes`` (dropped and counted per topic as ``oversized``, one
 warning per topic). So a client that subscribes to everything and never reads holds at most
 ``client_bytes`` (plus the one message being written to its socket), and while more than
@@ -57,6 +57,7 @@ OVERSIZED = "oversized"
 OVER_CLIENTS = "clients over max_clients"
 SLOW = "slow-client drops (at least)"
 MIN_BACKLOG = 8  # messages per client: the SDK disconnects a client whose control queue (as long) is full
+MAX_BACKLOG = 1024  # the SDK's default
 
 # The SDK's Rust log reaches Python logging through pyo3-log, one logger per Rust module. These
 # are the records the bridge reads (client connections, full outboxes) or aggregates (invalid
@@ -153,8 +154,9 @@ class FoxgloveBridge(Component):
 
     @property
     def backlog(self) -> int:
-        """Messages the SDK keeps per client: the byte budget over the largest message."""
-        return max(1, self.client_bytes // self.max_message_bytes)
+        """Messages the SDK keeps per client: the byte budget over the largest message, at most
+        MAX_BACKLOG (the SDK's queue of control messages, error answers included, is as long)."""
+        return max(1, min(MAX_BACKLOG, self.client_bytes // self.max_message_bytes))
 
     def start(self) -> None:
         import foxglove  # imported here: loading the plugin stays cheap
