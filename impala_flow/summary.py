@@ -100,11 +100,25 @@ class RunSummary:
                 out[f"{cid}.{port}"] = {"unreadable": n, "missing_s": ranges.get(str(port), [])}
         return out
 
+    def component_drops(self) -> dict[str, dict[str, int]]:
+        """Samples a component dropped itself, from its ``summary()`` ``dropped``
+        ({what: {kind: count}}, e.g. a live view's oversized messages): {"comp.what": {kind: n}}."""
+        out: dict[str, dict[str, int]] = {}
+        for cid, extra in self.extra.items():
+            own = extra.get("dropped") if isinstance(extra, dict) else None
+            if isinstance(own, dict):
+                for what, kinds in own.items():
+                    if isinstance(kinds, dict) and any(kinds.values()):
+                        out[f"{cid}.{what}"] = {str(k): int(n) for k, n in kinds.items() if n}
+        return out
+
     @property
     def total_lost(self) -> int:
-        """Samples dropped, unmatched or unconsumed at inputs, plus those sources could not read."""
+        """Samples dropped, unmatched or unconsumed at inputs, plus those sources could not read
+        and those components dropped themselves."""
         return (sum(sum(v.values()) for v in self.drops().values())
-                + sum(v["unreadable"] or 0 for v in self.source_losses().values()))
+                + sum(v["unreadable"] or 0 for v in self.source_losses().values())
+                + sum(sum(v.values()) for v in self.component_drops().values()))
 
     def to_json(self) -> dict[str, Any]:
         """Everything, for ``--summary-json``: the fields, ``lost`` (source losses) and ``lost_total``."""
@@ -138,7 +152,10 @@ class RunSummary:
             n = "an unknown number of" if v["unreadable"] is None else v["unreadable"]
             missing = ", ".join(f"{a:.3f}..{b:.3f} s" for a, b in v["missing_s"])
             lines.append(f"  LOST at {k}: {n} unreadable (damaged chunks; missing t={missing})")
-        if not drops and not unread:
+        own = self.component_drops()
+        for k, v in own.items():
+            lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
+        if not drops and not unread and not own:
             lines.append("  no sample dropped")
         for k, v in self.backpressure().items():
             lines.append(f"  BACKPRESSURE at {k}: producers blocked {v['blocked']} times, "
