@@ -26,11 +26,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .folder import prepare_folder
 from .results import STATUS_OK, Results
-from .spec import SweepSpec, Task
+from .spec import SweepError, SweepSpec, Task, clean_name
 from .task import SweepContext, failed_row, one_line, run_task, simulate_mission
 
-__all__ = ["run_sweep", "SweepOutcome", "mission_file"]
+__all__ = ["run_sweep", "SweepOutcome", "mission_file", "DASHBOARD", "DASK_LOG", "check_scheduler"]
+
+#: where the local cluster's dashboard listens unless told (loopback: nothing outside this machine reaches it)
+DASHBOARD = "127.0.0.1:8787"
+#: what Dask, its dashboard (bokeh, tornado) and asyncio log during a sweep: a file, not the terminal
+DASK_LOG = "dask.log"
+#: seconds to wait for a scheduler's handshake
+CONNECT_TIMEOUT_S = 10.0
 
 
 @dataclass
@@ -42,12 +50,15 @@ class SweepOutcome:
     interrupted: bool
     wall_s: float
     dashboard: str | None = None
+    #: warnings and errors Dask, the dashboard or asyncio logged (in DIR/dask.log)
+    logged: int = 0
 
 
 def mission_file(out_dir: str | Path, task: Task) -> Path:
-    """Where a simulated mission of ``task`` is written: ``DIR/missions/<scenario>_s<seed>[_<d>s].mcap``."""
+    """Where a simulated mission of ``task`` is written: ``DIR/missions/<scenario>_s<seed>[_<d>s].mcap``
+    (the scenario's name in safe characters, as task ids are)."""
     scenario = task.scenario or "mission"
-    name = Path(scenario).stem
+    name = clean_name(Path(scenario).stem)
     if scenario != name:  # a scenario file: two files of one name in two folders are two missions
         name += "-" + hashlib.sha1(scenario.encode()).hexdigest()[:6]
     parts = [name] + ([f"s{task.seed}"] if task.seed is not None else []) \
@@ -55,13 +66,89 @@ def mission_file(out_dir: str | Path, task: Task) -> Path:
     return Path(out_dir) / "missions" / ("_".join(parts) + ".mcap")
 
 
-def _free_port(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
+def _free_port(host: str, port: int) -> bool:
+    try:
+        with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM) as s:
+            s.bind((host, port))
+    except OSError:
+        return False
     return True
+
+
+def parse_dashboard(value: str | None) -> tuple[str, int] | None:
+    """``HOST:PORT`` (``:PORT`` is loopback, port 0 any free one), or ``none``: (host, port) or None.
+    Raises :class:`SweepError` naming the option."""
+    if value is None or value.strip().lower() in ("none", "off", "no", ""):
+        return None
+    host, sep, port = value.strip().rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise SweepError(f"--dashboard {value}: expected HOST:PORT (e.g. 127.0.0.1:8787, 0.0.0.0:8787 to open it "
+                         "to the network) or none")
+    return host, int(port)
+
+
+def parse_scheduler(address: str) -> tuple[str, str, int]:
+    """(protocol, host, port) of ``tcp://host:port`` (or ``host:port``, ``tls://...``); raises
+    :class:`SweepError` for anything else."""
+    proto, sep, rest = address.strip().partition("://")
+    if not sep:
+        proto, rest = "tcp", address.strip()
+    host, sep, port = rest.rstrip("/").rpartition(":")
+    host = host.strip("[]")
+    if proto not in ("tcp", "tls") or not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise SweepError(f"--scheduler {address}: not a Dask scheduler address (tcp://HOST:PORT, e.g. "
+                         "tcp://10.0.0.5:8786)")
+    return proto, host, int(port)
+
+
+def check_scheduler(address: str, timeout_s: float | None = None) -> None:
+    """Raise :class:`SweepError` (one line) unless a Dask server answers at ``address``: it
+    must send a handshake whose framing is Dask's (a total length, then a few frames whose
+    lengths add up) within ``timeout_s``. An HTTP server (the dashboard's port) waits for a
+    request and sends nothing; other servers send text: neither gets a Dask client, which
+    would read its first bytes as a length and try to allocate exabytes."""
+    import struct
+
+    timeout_s = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    proto, host, port = parse_scheduler(address)
+    if proto != "tcp":
+        return  # TLS: the handshake is inside the TLS session; Dask's client checks it
+    where = f"--scheduler {address}"
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s) as s:
+            s.settimeout(timeout_s)
+
+            def read(n: int) -> bytes:
+                buf = b""
+                while len(buf) < n:
+                    chunk = s.recv(n - len(buf))
+                    if not chunk:
+                        raise ConnectionError("closed the connection")
+                    buf += chunk
+                return buf
+
+            try:
+                (total,) = struct.unpack("<Q", read(8))
+                if not 16 <= total <= 1 << 20:
+                    raise ValueError
+                body = read(total)
+                (n,) = struct.unpack("<Q", body[:8])
+                if not 1 <= n <= 64 or 8 + 8 * n > total:
+                    raise ValueError
+            except TimeoutError:
+                raise SweepError(f"{where}: that address does not speak the Dask protocol (no handshake within "
+                                 f"{timeout_s:g} s; an HTTP port such as the dashboard's? the scheduler's is "
+                                 "usually 8786)") from None
+            except (ValueError, ConnectionError):
+                raise SweepError(f"{where}: that address does not speak the Dask protocol (it answered something "
+                                 "else; the scheduler's port is usually 8786)") from None
+    except SweepError:
+        raise
+    except TimeoutError:
+        raise SweepError(f"{where}: no answer within {timeout_s:g} s (a firewall, or nothing listening)") from None
+    except OSError as e:
+        raise SweepError(f"{where}: cannot connect: {e.strerror or e}") from None
 
 
 @contextlib.contextmanager
@@ -126,17 +213,24 @@ class _Progress:
 
 def run_sweep(spec: SweepSpec, out_dir: str | Path, *, scheduler: str | None = None,
               scheduler_file: str | None = None, workers: int | None = None, threads_per_worker: int = 1,
-              resume: bool = False, progress: bool | None = None,
-              on_client: Callable[[Any], None] | None = None) -> SweepOutcome:
+              resume: bool = False, overwrite: bool = False, progress: bool | None = None,
+              dashboard: str | None = DASHBOARD, on_client: Callable[[Any], None] | None = None) -> SweepOutcome:
     """Run every task of ``spec`` not already done in ``out_dir`` and write the outputs.
 
-    Without ``scheduler``/``scheduler_file``, a ``distributed.LocalCluster`` of ``workers``
-    processes (default: one per CPU) with ``threads_per_worker`` threads each is started and
-    closed at the end. ``on_client(client)`` is called once connected (tests, benchmarks)."""
+    The folder is first made this sweep's (:func:`~.folder.prepare_folder`: ``resume`` only
+    the same sweep, ``overwrite`` removes only what a sweep made). Without
+    ``scheduler``/``scheduler_file``, a ``distributed.LocalCluster`` of ``workers`` processes
+    (default: one per CPU) with ``threads_per_worker`` threads each is started on the loopback
+    interface and closed at the end; its dashboard listens on ``dashboard`` (``HOST:PORT``,
+    loopback by default; None: no dashboard). ``on_client(client)`` is called once connected
+    (tests, benchmarks)."""
     from distributed import as_completed
 
     t0 = time.perf_counter()
-    out = Path(out_dir).resolve()
+    board = parse_dashboard(dashboard)
+    if scheduler:
+        check_scheduler(scheduler)
+    out = prepare_folder(spec, out_dir, resume=resume, overwrite=overwrite)
     results = Results(spec, out, resume=resume)
     done = results.done()
     todo = [t for t in spec.tasks if t.id not in done]
@@ -149,14 +243,15 @@ def run_sweep(spec: SweepSpec, out_dir: str | Path, *, scheduler: str | None = N
     cluster = client = None
     futures: list[Any] = []
     try:
-        with _dask_logs_quiet():
+        with _dask_logs_to(out / DASK_LOG) as logged:
             try:
                 with _sigterm_interrupts():
                     if todo:
-                        client, cluster, where = _connect(scheduler, scheduler_file, workers, threads_per_worker)
-                        outcome.dashboard = client.dashboard_link if client.scheduler_info().get(
-                            "services", {}).get("dashboard") else None
-                        bar.write(f"sweep: {len(todo)} tasks on a {where}; dashboard: {outcome.dashboard or 'none'}")
+                        client, cluster, where = _connect(scheduler, scheduler_file, workers, threads_per_worker,
+                                                          board)
+                        outcome.dashboard, listens = _dashboard(client, cluster)
+                        bar.write(f"sweep: {len(todo)} tasks on a {where}; dashboard: "
+                                  + (f"{outcome.dashboard} ({listens})" if outcome.dashboard else "none"))
                         if on_client is not None:
                             on_client(client)
                         futures = _submit(client, todo, ctx, out)
@@ -181,9 +276,12 @@ def run_sweep(spec: SweepSpec, out_dir: str | Path, *, scheduler: str | None = N
                         client.close()
                     if cluster is not None:
                         cluster.close()
+        outcome.logged = logged[0]
+        if logged[0]:
+            bar.write(f"sweep: {logged[0]} warning(s) or error(s) from Dask or its dashboard: see {out / DASK_LOG}")
     finally:
         results.finalize()
-        for part in (out / "missions").glob(".*.part"):  # a simulation cut short by a dead worker
+        for part in (out / "missions").glob(".*.mcap.*.part"):  # a simulation cut short by a dead worker
             part.unlink(missing_ok=True)
         outcome.ok, outcome.failed = results.counts()
         outcome.wall_s = time.perf_counter() - t0
@@ -198,17 +296,74 @@ def quiet_dask() -> bool:
     return not logging.getLogger().isEnabledFor(logging.DEBUG)
 
 
+class _FileLog(logging.Handler):
+    """Appends records to a file, opened on the first one. Not a ``logging.StreamHandler``:
+    Dask's ``silence_logs`` re-levels those, and this one must keep every record."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(logging.INFO)
+        self.path = path
+        self.file: Any = None
+        self.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            if self.file is None:
+                self.file = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+            self.file.write(self.format(record) + "\n")
+            self.file.flush()
+        except Exception:
+            self.handleError(record)
+
+    def close(self) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+        super().close()
+
+
+class _Counter(logging.Handler):
+    def __init__(self, box: list[int]) -> None:
+        super().__init__(logging.WARNING)
+        self.box = box
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.box[0] += 1
+
+
+#: loggers of Dask, its dashboard's web server and the event loop: what a remote request, a
+#: closing cluster or an interrupt makes them say goes to DIR/dask.log, counted
+_DASK_LOGGERS = ("distributed", "tornado", "bokeh", "asyncio")
+
+
 @contextlib.contextmanager
-def _dask_logs_quiet() -> Iterator[None]:
-    """Dask logs every scheduler and worker event at INFO: shown with ``--debug`` only."""
-    log = logging.getLogger("distributed")
-    old = log.level
-    if quiet_dask():
-        log.setLevel(logging.WARNING)
+def _dask_logs_to(path: Path) -> Iterator[list[int]]:
+    """Route the loggers of :data:`_DASK_LOGGERS` to ``path`` (INFO and up) for the sweep,
+    counting warnings and errors (the box yielded); with ``--debug`` they still reach the
+    terminal too. Their handlers and levels are restored afterwards."""
+    box = [0]
+    file = _FileLog(path)
+    counter = _Counter(box)
+    debug = not quiet_dask()
+    saved = []
+    for name in _DASK_LOGGERS:
+        log = logging.getLogger(name)
+        saved.append((log, log.handlers[:], log.propagate, log.level))
+        if not debug:
+            log.handlers = []
+            log.propagate = False
+        log.addHandler(file)
+        log.addHandler(counter)
+        if log.level == logging.NOTSET or log.level > logging.INFO:
+            log.setLevel(logging.INFO)
     try:
-        yield
+        yield box
     finally:
-        log.setLevel(old)
+        for log, handlers, propagate, level in saved:
+            log.handlers = handlers
+            log.propagate = propagate
+            log.setLevel(level)
+        file.close()
 
 
 @contextlib.contextmanager
@@ -237,12 +392,12 @@ def _quiet_close() -> Iterator[None]:
 
 
 def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | None,
-             threads_per_worker: int) -> tuple[Any, Any, str]:
+             threads_per_worker: int, board: tuple[str, int] | None) -> tuple[Any, Any, str]:
     """(client, local cluster or None, a description)."""
     from distributed import Client, LocalCluster
 
     if scheduler or scheduler_file:
-        client = Client(scheduler, scheduler_file=scheduler_file, timeout="30s")
+        client = Client(scheduler, scheduler_file=scheduler_file, timeout=f"{CONNECT_TIMEOUT_S:g}s")
         return client, None, f"scheduler {client.scheduler.address}"
     import dask
 
@@ -250,16 +405,34 @@ def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | N
     # Dask's default MALLOC_TRIM_THRESHOLD_=65536 makes numpy-heavy graphs about 2x slower
     # (see task.undo_dask_malloc_trim): the local cluster's workers do without it
     no_trim = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+    if board is not None:
+        host, port = board
+        address = f"{host}:{port if port == 0 or _free_port(host, port) else 0}"
     with _children_ignore_sigint(), dask.config.set(no_trim):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
-                               dashboard_address=":8787" if _free_port(8787) else ":0",
-                               silence_logs=logging.ERROR if quiet_dask() else False)
+        # host: the scheduler, the nannies and the workers listen on the loopback interface only
+        cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True, host="127.0.0.1",
+                               dashboard_address=address if board is not None else None,
+                               silence_logs=logging.CRITICAL if quiet_dask() else False)
     try:
         client = Client(cluster)
     except BaseException:
         cluster.close()
         raise
     return client, cluster, f"local cluster of {n} worker process(es) x {threads_per_worker} thread(s)"
+
+
+def _dashboard(client: Any, cluster: Any) -> tuple[str | None, str]:
+    """(the dashboard's link, where it listens) of the cluster, or (None, "")."""
+    services = client.scheduler_info().get("services", {})
+    if not services.get("dashboard"):
+        return None, ""
+    if cluster is None:
+        return client.dashboard_link, "the scheduler's"
+    server = cluster.scheduler.http_server
+    hosts = sorted({f"{s.getsockname()[0]}:{s.getsockname()[1]}" for s in server._sockets.values()})
+    loopback = all(h.startswith(("127.", "::1", "[::1]")) for h in hosts)
+    return client.dashboard_link, f"listening on {', '.join(hosts)}" + (" only" if loopback
+                                                                         else ": open to the network")
 
 
 def _submit(client: Any, todo: list[Task], ctx: SweepContext, out: Path) -> list[Any]:
