@@ -169,7 +169,9 @@ def _sigterm_interrupts() -> Iterator[None]:
 
 
 class _Progress:
-    """tqdm bar (tasks done, ok/failed) on a terminal; one line per task otherwise."""
+    """tqdm bar (tasks done, ok/failed) on a terminal; one line per task otherwise. A failure's
+    error is printed the first time only: later tasks failing the same way are counted, and
+    :meth:`close` says how many (the rows and summary.md have every one)."""
 
     def __init__(self, total: int, enabled: bool | None) -> None:
         self.total = total
@@ -177,6 +179,7 @@ class _Progress:
         self.quiet = enabled is False
         self.bar: Any = None
         self.ok = self.failed = 0
+        self.errors: dict[str, int] = {}  # error text -> tasks that failed with it
         if self.tty and not self.quiet:
             from tqdm import tqdm
 
@@ -190,25 +193,37 @@ class _Progress:
         else:
             print(text, file=sys.stderr, flush=True)
 
+    def _error(self, row: dict[str, str]) -> str:
+        """The row's error the first time it is seen, else a pointer to it."""
+        text = row.get("error") or "?"
+        self.errors[text] = self.errors.get(text, 0) + 1
+        return text if self.errors[text] == 1 else "the same error as before"
+
     def update(self, row: dict[str, str]) -> None:
-        if row.get("status") == STATUS_OK:
-            self.ok += 1
-        else:
+        failed = row.get("status") != STATUS_OK
+        if failed:
             self.failed += 1
+        else:
+            self.ok += 1
+        err = self._error(row) if failed else ""
         if self.bar is not None:
-            if row.get("status") != STATUS_OK:
-                self.bar.write(f"FAILED {row['task']}: {row.get('error')}", file=sys.stderr)
+            if failed and self.errors[row.get("error") or "?"] == 1:
+                self.bar.write(f"FAILED {row['task']}: {err}", file=sys.stderr)
             self.bar.set_postfix_str(f"ok={self.ok} failed={self.failed}", refresh=False)
             self.bar.update(1)
         elif not self.quiet:
             n = self.ok + self.failed
             wall = f" {float(row['wall_s']):.1f} s" if row.get("wall_s") else ""
-            err = f": {row.get('error')}" if row.get("status") != STATUS_OK else ""
-            print(f"[{n}/{self.total}] {row.get('status')} {row['task']}{wall}{err}", file=sys.stderr, flush=True)
+            print(f"[{n}/{self.total}] {row.get('status')} {row['task']}{wall}" + (f": {err}" if failed else ""),
+                  file=sys.stderr, flush=True)
 
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+        repeated = {e: n for e, n in self.errors.items() if n > 1}
+        if repeated and not self.quiet:
+            print(f"sweep: {sum(repeated.values()) - len(repeated)} more task(s) failed with an error already "
+                  f"shown ({len(repeated)} kind(s); every one is in results.csv)", file=sys.stderr, flush=True)
 
 
 def run_sweep(spec: SweepSpec, out_dir: str | Path, *, scheduler: str | None = None,
@@ -368,17 +383,30 @@ def _dask_logs_to(path: Path) -> Iterator[list[int]]:
 
 @contextlib.contextmanager
 def _children_ignore_sigint() -> Iterator[None]:
-    """Worker processes started inside ignore SIGINT (an ignored signal stays ignored in a
-    child): Ctrl-C in a terminal reaches the whole process group, and the sweep, not each
-    worker, decides what to stop. A Ctrl-C while the cluster starts is ignored too."""
+    """Worker processes started inside never see SIGINT: it is blocked in this thread (and so
+    in the threads and processes started from it: a signal mask is inherited through fork and
+    exec), since Ctrl-C in a terminal reaches the whole process group and the sweep, not each
+    worker, decides what to stop. Not ignored (SIG_IGN) in this process: another thread
+    (OpenBLAS's) would then receive and discard a Ctrl-C. A Ctrl-C while the cluster starts is
+    noted and raised as KeyboardInterrupt once it has started, so it is neither lost nor cuts
+    the start in half."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    caught: list[int] = []
+
+    def later(signum: int, frame: Any) -> None:
+        caught.append(signum)
+
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    old = signal.signal(signal.SIGINT, later)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    if caught:
+        raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
@@ -404,21 +432,42 @@ def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | N
     n = workers or os.cpu_count() or 1
     # Dask's default MALLOC_TRIM_THRESHOLD_=65536 makes numpy-heavy graphs about 2x slower
     # (see task.undo_dask_malloc_trim): the local cluster's workers do without it
-    no_trim = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+    config: dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+    address = None
     if board is not None:
         host, port = board
-        address = f"{host}:{port if port == 0 or _free_port(host, port) else 0}"
-    with _children_ignore_sigint(), dask.config.set(no_trim):
-        # host: the scheduler, the nannies and the workers listen on the loopback interface only
-        cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True, host="127.0.0.1",
-                               dashboard_address=address if board is not None else None,
-                               silence_logs=logging.CRITICAL if quiet_dask() else False)
+        if port == 0 or not _free_port(host, port):
+            port = _any_free_port(host)
+        address = f"{host}:{port}"
+        if _loopback(host):
+            # the dashboard's websockets only for pages served from this machine (not '*', bokeh's
+            # default: a web page elsewhere could otherwise talk to it through the user's browser)
+            config["distributed.scheduler.dashboard.bokeh-application.allow_websocket_origin"] = [
+                f"{h}:{port}" for h in ("127.0.0.1", "localhost", host)]
+    cluster = None
     try:
+        with _children_ignore_sigint(), dask.config.set(config):
+            # host: the scheduler, the nannies and the workers listen on the loopback interface only
+            cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
+                                   host="127.0.0.1", dashboard_address=address,
+                                   silence_logs=logging.CRITICAL if quiet_dask() else False)
         client = Client(cluster)
-    except BaseException:
-        cluster.close()
+    except BaseException:  # an interrupt while starting included
+        if cluster is not None:
+            with _quiet_close():
+                cluster.close()
         raise
     return client, cluster, f"local cluster of {n} worker process(es) x {threads_per_worker} thread(s)"
+
+
+def _loopback(host: str) -> bool:
+    return host.startswith("127.") or host in ("::1", "localhost")
+
+
+def _any_free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
 
 
 def _dashboard(client: Any, cluster: Any) -> tuple[str | None, str]:
@@ -430,7 +479,7 @@ def _dashboard(client: Any, cluster: Any) -> tuple[str | None, str]:
         return client.dashboard_link, "the scheduler's"
     server = cluster.scheduler.http_server
     hosts = sorted({f"{s.getsockname()[0]}:{s.getsockname()[1]}" for s in server._sockets.values()})
-    loopback = all(h.startswith(("127.", "::1", "[::1]")) for h in hosts)
+    loopback = all(_loopback(h.rsplit(":", 1)[0].strip("[]")) for h in hosts)
     return client.dashboard_link, f"listening on {', '.join(hosts)}" + (" only" if loopback
                                                                          else ": open to the network")
 
