@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import logging
 import os
 import signal
@@ -59,7 +60,7 @@ def mission_file(out_dir: str | Path, task: Task) -> Path:
     (the scenario's name in safe characters, as task ids are)."""
     scenario = task.scenario or "mission"
     name = clean_name(Path(scenario).stem)
-    if scenario != name:  # a scenario file: two files of one name in two folders are two missions
+    if scenario != name:  # a scenario file (two of one name in two folders), or a name not safe as it is
         name += "-" + hashlib.sha1(scenario.encode()).hexdigest()[:6]
     parts = [name] + ([f"s{task.seed}"] if task.seed is not None else []) \
         + ([f"{task.duration_s:g}s"] if task.duration_s is not None else [])
@@ -100,6 +101,26 @@ def parse_scheduler(address: str) -> tuple[str, str, int]:
         raise SweepError(f"--scheduler {address}: not a Dask scheduler address (tcp://HOST:PORT, e.g. "
                          "tcp://10.0.0.5:8786)")
     return proto, host, int(port)
+
+
+def read_scheduler_file(path: str) -> str:
+    """The scheduler's address from its file (``dask scheduler --scheduler-file``, JSON with
+    ``address``); :class:`SweepError` naming the file otherwise."""
+    where = f"--scheduler-file {path}"
+    try:
+        with open(path, "rb") as f:
+            raw = f.read((1 << 20) + 1)
+    except OSError as e:
+        raise SweepError(f"{where}: cannot read: {e.strerror or e}") from None
+    try:
+        if len(raw) > 1 << 20:
+            raise ValueError("over 1 MiB")
+        address = json.loads(raw.decode("utf-8")).get("address")
+    except (ValueError, UnicodeError, AttributeError) as e:
+        raise SweepError(f"{where}: not a Dask scheduler file (JSON with an address): {e}") from None
+    if not isinstance(address, str) or not address:
+        raise SweepError(f"{where}: no scheduler address in it")
+    return address
 
 
 def check_scheduler(address: str, timeout_s: float | None = None) -> None:
@@ -243,6 +264,8 @@ def run_sweep(spec: SweepSpec, out_dir: str | Path, *, scheduler: str | None = N
 
     t0 = time.perf_counter()
     board = parse_dashboard(dashboard)
+    if scheduler_file:
+        scheduler, scheduler_file = read_scheduler_file(scheduler_file), None
     if scheduler:
         check_scheduler(scheduler)
     out = prepare_folder(spec, out_dir, resume=resume, overwrite=overwrite)

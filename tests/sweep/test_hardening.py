@@ -53,6 +53,13 @@ def test_ids_from_hostile_file_names_are_safe_and_unique(tmp_path: Path, write_s
         assert all(c.isalnum() or c in "_=+.~-" for c in i), i
         assert (tmp_path / "out" / "tasks" / i).resolve().parent == (tmp_path / "out" / "tasks").resolve()
     assert len({i.lower() for i in ids}) == len(ids)  # unique even on a case-insensitive file system
+    # simulated missions: the scenario's name is made safe too (and told apart from a safe one)
+    from impala_flow.sweep import mission_file
+    from impala_flow.sweep.spec import Task
+
+    for scenario in ("..", "a/../../b", "x y"):
+        path = mission_file(tmp_path / "out", Task("t", f"sim:{scenario}", 1, None, ()))
+        assert path.parent == tmp_path / "out" / "missions" and is_safe_id(path.name), path
     # deterministic: the same file gives the same ids, whatever the order of the missions
     again = load_sweep(write_sweep(f"graph: {GRAPH}\nmissions: {{files: {_yaml_list(files[::-1])}}}\n"
                                    f"metrics: {METRICS}\n", "again.yaml"))
@@ -294,4 +301,13 @@ def test_a_scheduler_address_that_is_not_dask_is_one_line(http_port: int, missio
     talker.close()
     assert sweep_main(str(sweep), "-o", str(tmp_path / "a"), "--scheduler", "http://127.0.0.1:8787") == 2
     assert "not a Dask scheduler address" in capsys.readouterr().err
+    # the same through a scheduler file, and a file that is not one
+    file = tmp_path / "scheduler.json"
+    file.write_text(json.dumps({"address": f"tcp://127.0.0.1:{http_port}"}))
+    assert sweep_main(str(sweep), "-o", str(tmp_path / "a"), "--scheduler-file", str(file)) == 2
+    assert "does not speak the Dask protocol" in capsys.readouterr().err
+    file.write_bytes(b"\x89PNG\r\n")
+    assert sweep_main(str(sweep), "-o", str(tmp_path / "a"), "--scheduler-file", str(file)) == 2
+    err = capsys.readouterr().err
+    assert f"--scheduler-file {file}: not a Dask scheduler file" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "a").exists()
