@@ -38,6 +38,8 @@ __all__ = ["run_sweep", "SweepOutcome", "mission_file", "DASHBOARD", "DASK_LOG",
 DASHBOARD = "127.0.0.1:8787"
 #: what Dask, its dashboard (bokeh, tornado) and asyncio log during a sweep: a file, not the terminal
 DASK_LOG = "dask.log"
+#: most bytes written to DIR/dask.log by one sweep (the records beyond are counted, not written)
+MAX_LOG_BYTES = 10 << 20
 #: seconds to wait for a scheduler's handshake
 CONNECT_TIMEOUT_S = 10.0
 
@@ -338,22 +340,31 @@ class _FileLog(logging.Handler):
     """Appends records to a file, opened on the first one. Not a ``logging.StreamHandler``:
     Dask's ``silence_logs`` re-levels those, and this one must keep every record."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, max_bytes: int) -> None:
         super().__init__(logging.INFO)
         self.path = path
         self.file: Any = None
+        self.left = max_bytes  # bounded: a flood of bad requests cannot fill the disk
+        self.dropped = 0
         self.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
+            text = self.format(record) + "\n"
+            if len(text) > self.left:
+                self.dropped += 1
+                return
+            self.left -= len(text)
             if self.file is None:
                 self.file = open(self.path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
-            self.file.write(self.format(record) + "\n")
+            self.file.write(text)
             self.file.flush()
         except Exception:
             self.handleError(record)
 
     def close(self) -> None:
+        if self.dropped and self.file is not None:
+            self.file.write(f"... {self.dropped} more record(s) not written: the log's limit was reached\n")
         if self.file is not None:
             self.file.close()
             self.file = None
@@ -380,7 +391,7 @@ def _dask_logs_to(path: Path) -> Iterator[list[int]]:
     counting warnings and errors (the box yielded); with ``--debug`` they still reach the
     terminal too. Their handlers and levels are restored afterwards."""
     box = [0]
-    file = _FileLog(path)
+    file = _FileLog(path, MAX_LOG_BYTES)  # read at call time (tests lower it)
     counter = _Counter(box)
     debug = not quiet_dask()
     saved = []

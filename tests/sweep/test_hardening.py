@@ -311,3 +311,30 @@ def test_a_scheduler_address_that_is_not_dask_is_one_line(http_port: int, missio
     err = capsys.readouterr().err
     assert f"--scheduler-file {file}: not a Dask scheduler file" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "a").exists()
+
+
+def test_the_dask_log_is_bounded_and_counts_what_it_drops(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                          capfd: Any) -> None:
+    import logging
+
+    from impala_flow.sweep import runner
+
+    path = tmp_path / "dask.log"
+    with runner._dask_logs_to(path) as count:  # what run_sweep wraps the cluster's life in
+        for i in range(2000):  # a flood of bad requests to the dashboard
+            logging.getLogger("tornado.application").error("Uncaught exception GET /x%d", i)
+        logging.getLogger("distributed.scheduler").info("not counted")
+    monkeypatch.setattr(runner, "MAX_LOG_BYTES", 10_000)
+    small = tmp_path / "small.log"
+    with runner._dask_logs_to(small) as small_count:
+        for i in range(2000):
+            logging.getLogger("bokeh.server").error("refused %d", i)
+    assert count == [2000] and small_count == [2000]
+    assert len(path.read_text().splitlines()) == 2001
+    lines = small.read_text().splitlines()
+    assert small.stat().st_size < 10_000 + 200
+    assert lines[-1] == f"... {2000 - (len(lines) - 1)} more record(s) not written: the log's limit was reached"
+    err = capfd.readouterr().err
+    assert "Uncaught" not in err and "refused" not in err  # nothing in the terminal
+    logging.getLogger("tornado.application").error("after the sweep")  # the loggers are given back
+    assert "after the sweep" not in small.read_text()
