@@ -511,8 +511,11 @@ def _dashboard(client: Any, cluster: Any) -> tuple[str | None, str]:
         return None, ""
     if cluster is None:
         return client.dashboard_link, "the scheduler's"
-    server = cluster.scheduler.http_server
-    hosts = sorted({f"{s.getsockname()[0]}:{s.getsockname()[1]}" for s in server._sockets.values()})
+    try:  # the sockets the dashboard's server really listens on (tornado's; private, so guarded)
+        sockets = cluster.scheduler.http_server._sockets.values()
+        hosts = sorted({f"{s.getsockname()[0]}:{s.getsockname()[1]}" for s in sockets})
+    except Exception:
+        return client.dashboard_link, "listening where --dashboard says"
     loopback = all(_loopback(h.rsplit(":", 1)[0].strip("[]")) for h in hosts)
     return client.dashboard_link, f"listening on {', '.join(hosts)}" + (" only" if loopback
                                                                          else ": open to the network")
