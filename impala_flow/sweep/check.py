@@ -6,6 +6,7 @@ and a parameter of its type, every metric names a component of the graph, and th
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -64,9 +65,12 @@ def check_sweep(spec: SweepSpec, registry: Registry, out_dir: str | Path, pm: ob
 
 
 def _type_problem(p: Param, value: Any) -> str | None:
-    """Why ``value`` cannot be ``p``'s type (as ``--set`` would read it), or None. Bounds and
-    choices are the task's to check: a variant out of range is a failed row, the others run."""
+    """Why ``value`` cannot be ``p``'s type (as ``--set`` would read it), or None; NaN is
+    refused too (as :class:`Param` does). Bounds and choices are the task's to check: a
+    variant out of range is a failed row, the others run."""
     t = p.type
+    if isinstance(value, float) and math.isnan(value) and t in (float, int):
+        return "NaN is not allowed (as for any parameter)"
     if t is float and isinstance(value, (int, float)) and not isinstance(value, bool):
         return None
     if t is list and isinstance(value, tuple):

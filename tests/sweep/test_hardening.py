@@ -216,6 +216,10 @@ def test_wrong_typed_values_are_located_in_the_sweep_file(write_sweep: Callable[
     assert sweep_main(str(sweep), "-o", str(tmp_path / "out")) == 2
     err = capsys.readouterr().err
     assert f"{sweep}:5:43: slam.map_update: expected str, got int 3" in err
+    sweep = write_sweep(f"graph: {GRAPH}\nmissions: {{simulate: {{scenario: beynes}}}}\n"
+                        f"grid: {{slam.search_m: [1.0, .nan]}}\nmetrics: {METRICS}\n", "nan.yaml")
+    assert sweep_main(str(sweep), "-o", str(tmp_path / "out")) == 2
+    assert f"{sweep}:3:29: slam.search_m: NaN is not allowed" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
 
