@@ -342,3 +342,27 @@ def test_the_dask_log_is_bounded_and_counts_what_it_drops(tmp_path: Path, monkey
     assert "Uncaught" not in err and "refused" not in err  # nothing in the terminal
     logging.getLogger("tornado.application").error("after the sweep")  # the loggers are given back
     assert "after the sweep" not in small.read_text()
+
+
+def test_ctrl_c_while_the_cluster_starts_is_kept_and_workers_never_see_it() -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import numpy as np  # noqa: F401  - its BLAS threads, which must not swallow the signal
+
+    from impala_flow.sweep import runner
+
+    with pytest.raises(KeyboardInterrupt), runner._children_ignore_sigint():
+        child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C reaches the whole process group
+        time.sleep(0.2)  # not raised inside: the start is not cut in half
+        status = Path(f"/proc/{child.pid}/status").read_text()
+        blocked = int(next(ln for ln in status.splitlines() if ln.startswith("SigBlk:")).split()[1], 16)
+        child.kill()
+        child.wait()
+        entered = True
+    assert entered and blocked & (1 << (signal.SIGINT - 1))  # the worker started inside has SIGINT blocked
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())
