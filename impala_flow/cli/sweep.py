@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
+from ..sweep.spec import MAX_TASKS, MAX_TASKS_CEILING
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 from ._common import open_session
 
@@ -29,7 +29,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", metavar="DIR", help="folder of the results (on shared storage for a cluster: "
                    "the workers write the task folders there)")
     p.add_argument("--resume", metavar="DIR", help="continue the sweep of DIR: tasks with an ok row in "
-                   "DIR/results.csv are skipped, the others run")
+                   "DIR/results.csv are skipped, the others run; refused unless DIR was made by this same sweep "
+                   "(sweep file, graph and missions unchanged)")
+    p.add_argument("--overwrite", action="store_true", help="use -o DIR although it is not empty: a sweep's "
+                   "folder is started again (only what that sweep made is removed); another folder gets the sweep "
+                   "beside what is there, refused if a file the sweep writes is there already")
+    p.add_argument("--max-tasks", type=int, default=None, metavar="N",
+                   help="most tasks the sweep may expand to (missions x variants x repeats, counted before "
+                   "anything is built; default " + str(MAX_TASKS) + ")")
+    p.add_argument("--dashboard", metavar="HOST:PORT", default=None,
+                   help="where the local cluster's Dask dashboard listens (default 127.0.0.1:8787, this machine "
+                   "only, another port when taken; 0.0.0.0:8787 opens it to the network; none: no dashboard)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler (tcp://host:8786) "
                    "instead of a local cluster")
     p.add_argument("--scheduler-file", metavar="FILE", help="the scheduler's file (dask scheduler "
@@ -47,13 +57,19 @@ def _check_args(args: argparse.Namespace) -> Path:
     if args.output and args.resume and Path(args.output).resolve() != Path(args.resume).resolve():
         raise CommandError(f"-o {args.output} and --resume {args.resume}: two different folders", EXIT_USAGE)
     out = args.resume or args.output
+    remote = args.scheduler or args.scheduler_file
     if not out:
         raise CommandError("give the results folder: -o DIR (or --resume DIR)", EXIT_USAGE)
-    if args.resume and not (Path(args.resume) / "results.csv").is_file():
-        raise CommandError(f"--resume {args.resume}: no results.csv there (nothing to resume)", EXIT_USAGE)
+    if args.resume and args.overwrite:
+        raise CommandError("--resume and --overwrite: give one (resume keeps what is done, overwrite starts again)",
+                           EXIT_USAGE)
+    if args.max_tasks is not None and not 1 <= args.max_tasks <= MAX_TASKS_CEILING:
+        raise CommandError(f"--max-tasks {args.max_tasks}: must be between 1 and {MAX_TASKS_CEILING}", EXIT_USAGE)
+    if args.dashboard is not None and remote:
+        raise CommandError("--dashboard places the local cluster's dashboard; with --scheduler the scheduler "
+                           "has its own", EXIT_USAGE)
     if args.scheduler and args.scheduler_file:
         raise CommandError("--scheduler and --scheduler-file: give one", EXIT_USAGE)
-    remote = args.scheduler or args.scheduler_file
     if remote and (args.workers is not None or args.threads_per_worker != 1):
         raise CommandError("--workers and --threads-per-worker size the local cluster; with --scheduler the "
                            "cluster's own workers run the tasks", EXIT_USAGE)
@@ -63,44 +79,46 @@ def _check_args(args: argparse.Namespace) -> Path:
         raise CommandError(f"--threads-per-worker {args.threads_per_worker}: must be >= 1", EXIT_USAGE)
     if Path(out).exists() and not Path(out).is_dir():
         raise CommandError(f"{out}: not a folder", EXIT_USAGE)
+    if args.resume and not Path(out).is_dir():
+        raise CommandError(f"--resume {out}: no such folder (nothing to resume)", EXIT_USAGE)
     return Path(out)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..spec import GraphError
     from ..sweep import SweepError, check_sweep, load_sweep
+    from ..sweep.task import one_line
 
     out = _check_args(args)
     try:
-        spec = load_sweep(args.sweep)
+        spec = load_sweep(args.sweep, max_tasks=args.max_tasks or MAX_TASKS)
     except SweepError as e:
         raise CommandError(str(e), EXIT_USAGE) from None
     session = open_session()
     try:
         check_sweep(spec, session.registry, out, session.pm)
+        if args.scheduler:
+            from ..sweep.runner import parse_scheduler
+
+            parse_scheduler(args.scheduler)
     except (GraphError, SweepError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise CommandError(f"{out}: cannot create the folder: {e.strerror or e}", EXIT_USAGE) from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise CommandError(f"{out}: cannot write in this folder", EXIT_USAGE)
     try:
         import distributed  # noqa: F401  - lazily: only a sweep needs Dask
     except ImportError as e:
         raise CommandError(f"sweeps need Dask distributed: pip install 'dask[distributed]' ({e})") from None
-    from ..sweep.runner import run_sweep
+    from ..sweep.runner import DASHBOARD, run_sweep
 
     try:
         outcome = run_sweep(spec, out, scheduler=args.scheduler, scheduler_file=args.scheduler_file,
                             workers=args.workers, threads_per_worker=args.threads_per_worker,
-                            resume=bool(args.resume), progress=False if args.no_progress else None)
+                            resume=bool(args.resume), overwrite=args.overwrite,
+                            dashboard=args.dashboard or DASHBOARD, progress=False if args.no_progress else None)
     except SweepError as e:
         raise CommandError(str(e), EXIT_USAGE) from None
     except (OSError, TimeoutError) as e:
         where = args.scheduler or args.scheduler_file or "the local cluster"
-        raise CommandError(f"Dask ({where}): {type(e).__name__}: {e}", EXIT_FAILED) from None
+        raise CommandError(f"Dask ({where}): {type(e).__name__}: {one_line(e)}", EXIT_FAILED) from None
     ran = outcome.ok + outcome.failed
     print(f"sweep {spec.path.name}: {outcome.total} tasks, {outcome.ok} ok, {outcome.failed} failed"
           + (f", {outcome.skipped} done before" if outcome.skipped else "")
@@ -111,8 +129,8 @@ def run(args: argparse.Namespace) -> int:
         if (out / name).exists():
             print(f"  {label + ':':9s}{out / name}")
     if outcome.interrupted:
-        print(f"impala-flow sweep: interrupted; --resume {out} runs the {outcome.total - outcome.ok} tasks left",
-              file=sys.stderr)
+        print(f"impala-flow sweep: interrupted; {outcome.ok} of {outcome.total} tasks done, resume with "
+              f"--resume {out}", file=sys.stderr)
         return EXIT_INTERRUPTED
     if outcome.failed:
         print(f"impala-flow sweep: {outcome.failed} of {outcome.total} tasks failed (errors in {out}/results.csv "

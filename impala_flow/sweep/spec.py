@@ -25,19 +25,28 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..yamlloc import YamlError, load_yaml, location
 
-__all__ = ["SweepSpec", "SweepError", "Task", "load_sweep", "format_value", "RESERVED_VARIABLES"]
+__all__ = ["SweepSpec", "SweepError", "Task", "load_sweep", "format_value", "RESERVED_VARIABLES", "MAX_TASKS",
+           "MAX_TASKS_CEILING", "is_safe_id", "clean_name"]
 
 _TOP = ("graph", "missions", "grid", "variants", "metrics", "repeats", "variables")
 _SIM = ("scenario", "duration_s", "seeds")
 #: variables the sweep sets for every task: the mission file and the task's output folder
 RESERVED_VARIABLES = ("mission", "out")
 _MAX_ID = 120
+#: most tasks a sweep expands to unless told (``--max-tasks``); counted from the axes'
+#: sizes before anything is built
+MAX_TASKS = 10_000
+#: the highest ``--max-tasks`` accepted (each task is a few hundred bytes on the client)
+MAX_TASKS_CEILING = 1_000_000
+#: a task id: a folder name and a Dask key (no separators, no leading dot, never "." or "..")
+SAFE_ID = re.compile(r"[A-Za-z0-9_=+][A-Za-z0-9_=+.~-]*")
 
 
 class SweepError(ValueError):
@@ -57,7 +66,7 @@ class Task:
 
     @property
     def variant(self) -> str:
-        return ", ".join(f"{k}={format_value(v)}" for k, v in self.params) or "default"
+        return variant_name(self.params)
 
     @property
     def simulated(self) -> bool:
@@ -72,27 +81,80 @@ class Task:
         return [f"{k}={format_value(v)}" for k, v in self.params]
 
 
+Mission = tuple[str, int | None, float | None]  # (path or "sim:<scenario>", seed, duration_s)
+Variant = tuple[tuple[str, Any], ...]
+
+
 @dataclass
 class SweepSpec:
+    """A sweep file, read and checked but not expanded: :attr:`n_tasks` is the product of the
+    axes' sizes; :attr:`tasks` builds the tasks on first use (after the checks)."""
+
     path: Path
     graph: Path
     metrics: list[str]
-    tasks: list[Task] = field(default_factory=list)
+    missions: list[Mission] = field(default_factory=list)
+    #: the grid (name -> values, expanded as a product) or the explicit variants
+    grid: dict[str, list[Any]] | None = None
+    variant_list: list[Variant] = field(default_factory=lambda: [()])
+    repeats: int = 1
     variables: dict[str, Any] = field(default_factory=dict)
     #: where things are written in the sweep file: "graph", "metric:<m>", "param:<c.p>" -> "file:line:col"
     locs: dict[str, str] = field(default_factory=dict)
+    #: every value a variant sets, once per place it is written: (component.param, value, "file:line:col")
+    values: list[tuple[str, Any, str]] = field(default_factory=list)
+    _tasks: list[Task] | None = field(default=None, repr=False)
+
+    @property
+    def n_variants(self) -> int:
+        return math.prod(len(v) for v in self.grid.values()) if self.grid is not None else len(self.variant_list)
+
+    @property
+    def n_tasks(self) -> int:
+        """How many tasks the sweep expands to, from the axes' sizes (nothing built)."""
+        return len(self.missions) * self.n_variants * self.repeats
+
+    def iter_variants(self) -> Iterator[Variant]:
+        if self.grid is None:
+            yield from self.variant_list
+            return
+        names = list(self.grid)
+        for combo in itertools.product(*(self.grid[k] for k in names)):
+            yield tuple(zip(names, combo, strict=True))
+
+    @property
+    def tasks(self) -> list[Task]:
+        if self._tasks is None:
+            self._tasks = _build_tasks(self)
+        return self._tasks
 
     @property
     def param_names(self) -> list[str]:
         """Every parameter a variant sets, in first-seen order."""
-        return list(dict.fromkeys(k for t in self.tasks for k, _ in t.params))
+        if self.grid is not None:
+            return list(self.grid)
+        return list(dict.fromkeys(k for v in self.variant_list for k, _ in v))
 
     @property
     def variants(self) -> list[str]:
-        return list(dict.fromkeys(t.variant for t in self.tasks))
+        return [variant_name(v) for v in self.iter_variants()]
+
+    @property
+    def files(self) -> list[str]:
+        """The recorded missions' files (not the simulated ones)."""
+        return [m for m, _, _ in self.missions if not m.startswith("sim:")]
+
+    @property
+    def scenario_files(self) -> list[str]:
+        sims = (m[4:] for m, _, _ in self.missions if m.startswith("sim:"))
+        return list(dict.fromkeys(s for s in sims if Path(s).is_absolute()))
 
     def where(self, what: str) -> str:
         return self.locs.get(what, str(self.path))
+
+
+def variant_name(params: Variant) -> str:
+    return ", ".join(f"{k}={format_value(v)}" for k, v in params) or "default"
 
 
 def format_value(v: Any) -> str:
@@ -105,8 +167,11 @@ def format_value(v: Any) -> str:
     return json.dumps(v)
 
 
-def load_sweep(path: str | Path) -> SweepSpec:
-    """Load and validate a sweep file (module doc); raises :class:`SweepError`."""
+def load_sweep(path: str | Path, max_tasks: int = MAX_TASKS) -> SweepSpec:
+    """Load and validate a sweep file (module doc); raises :class:`SweepError`.
+
+    Nothing is expanded: the number of tasks is the product of the axes' sizes (missions x
+    variants x repeats), refused over ``max_tasks`` before any task is built."""
     path = Path(path)
     where = str(path)
     try:
@@ -144,16 +209,34 @@ def load_sweep(path: str | Path) -> SweepSpec:
         if k in RESERVED_VARIABLES:
             raise SweepError(f"{location(variables, k, where)}: variable {k!r} is set by the sweep for every task "
                              "(mission: the mission file, out: the task's folder)")
-    variants = _variants(doc, where, locs)
+    values: list[tuple[str, Any, str]] = []
+    grid, variant_list = _variants(doc, where, locs, values)
     missions = _missions(doc["missions"], base, location(doc, "missions", where, value=True), locs)
-    tags = _mission_tags(missions, base)
+    spec = SweepSpec(path, graph, metrics, missions, grid, variant_list, repeats, dict(variables), locs, values)
+    n = spec.n_tasks
+    if n > max_tasks:
+        axis = "grid" if grid is not None else "variants" if "variants" in doc else "missions"
+        at = location(doc, "repeats" if repeats > 1 else axis, where, value=True)
+        raise SweepError(f"{at}: the sweep expands to {n} tasks ({len(missions)} mission(s) x {spec.n_variants} "
+                         f"variant(s) x {repeats} repeat(s)), over the limit of {max_tasks}: shrink it, or raise "
+                         f"the limit with --max-tasks N (at most {MAX_TASKS_CEILING})")
+    return spec
+
+
+def _build_tasks(spec: SweepSpec) -> list[Task]:
+    """Every task, in the sweep's order (missions, variants, repeats), with unique safe ids."""
+    tags = _mission_tags(spec.missions, spec.path.parent)
+    durations: dict[str, set[float | None]] = {}
+    for m, _, d in spec.missions:
+        durations.setdefault(m, set()).add(d)
     tasks = []
-    for (mission, seed, duration), params, rep in itertools.product(missions, variants, range(repeats)):
+    for (mission, seed, duration), params, rep in itertools.product(spec.missions, spec.iter_variants(),
+                                                                    range(spec.repeats)):
         parts = [tags[mission]] + ([f"s{seed}"] if seed is not None else []) \
-            + ([f"{duration:g}s"] if duration is not None and _durations(missions, mission) > 1 else []) \
-            + [f"{k}={format_value(v)}" for k, v in params] + ([f"r{rep}"] if repeats > 1 else [])
-        tasks.append(Task("_".join(parts), mission, seed, duration, params, rep))
-    return SweepSpec(path, graph, metrics, _unique_ids(tasks), dict(variables), locs)
+            + ([f"{duration:g}s"] if duration is not None and len(durations[mission]) > 1 else []) \
+            + [f"{k}={format_value(v)}" for k, v in params] + ([f"r{rep}"] if spec.repeats > 1 else [])
+        tasks.append(Task("_".join(clean_name(p) for p in parts), mission, seed, duration, params, rep))
+    return _unique_ids(tasks)
 
 
 def _metrics(doc: Any, where: str, locs: dict[str, str]) -> list[str]:
@@ -171,7 +254,19 @@ def _metrics(doc: Any, where: str, locs: dict[str, str]) -> list[str]:
     return list(metrics)
 
 
-def _variants(doc: Any, where: str, locs: dict[str, str]) -> list[tuple[tuple[str, Any], ...]]:
+def _value_key(v: Any) -> str:
+    """Two values the same for a duplicate check (1 and 1.0 alike, as ``==`` has them)."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return repr(float(v))
+    try:
+        return json.dumps(v, sort_keys=True, default=str)
+    except (TypeError, ValueError):
+        return repr(v)
+
+
+def _variants(doc: Any, where: str, locs: dict[str, str], values: list[tuple[str, Any, str]]
+              ) -> tuple[dict[str, list[Any]] | None, list[Variant]]:
+    """(grid, None) or (None, explicit variants); duplicates found in one pass (hashed)."""
     if "grid" in doc and "variants" in doc:
         raise SweepError(f"{location(doc, 'variants', where)}: give either grid (a product) or variants (a list), "
                          "not both")
@@ -181,36 +276,42 @@ def _variants(doc: Any, where: str, locs: dict[str, str]) -> list[tuple[tuple[st
         if not isinstance(vs, list) or not vs:
             raise SweepError(f"{at}: variants must be a non-empty list of {{component.param: value}} mappings")
         out = []
+        seen: set[str] = set()
         for i, v in enumerate(vs):
+            vat = location(vs, i, at, value=True)
             if not isinstance(v, dict):
-                raise SweepError(f"{location(vs, i, at, value=True)}: variant {i + 1} must be a mapping "
+                raise SweepError(f"{vat}: variant {i + 1} must be a mapping "
                                  "{component.param: value} ({} for the graph as it is)")
             _check_names(v, where, locs)
             variant = tuple(sorted((str(k), val) for k, val in v.items()))
-            if variant in out:
-                raise SweepError(f"{location(vs, i, at, value=True)}: variant {i + 1} repeats an earlier one")
+            key = _value_key([[k, _value_key(val)] for k, val in variant])
+            if key in seen:
+                raise SweepError(f"{vat}: variant {i + 1} repeats an earlier one")
+            seen.add(key)
+            values += [(str(k), val, location(v, k, vat, value=True)) for k, val in v.items()]
             out.append(variant)
-        return out
+        return None, out
     grid = doc.get("grid")
     if grid is None or grid == {}:
-        return [()]
+        return None, [()]
     if not isinstance(grid, dict):
         raise SweepError(f"{location(doc, 'grid', where, value=True)}: grid must map component.param to a list "
                          "of values")
     _check_names(grid, where, locs)
-    names = list(grid)
-    for k in names:
+    for k in grid:
         vals = grid[k]
         if not isinstance(vals, list) or not vals:
             raise SweepError(f"{location(grid, k, where, value=True)}: grid {k}: must be a non-empty list of values, "
                              f"e.g. [{format_value(vals) if not isinstance(vals, (list, dict)) else '1.0, 2.0'}]")
-        seen: list[Any] = []
+        seen_values: set[str] = set()
         for i, v in enumerate(vals):
-            if v in seen:
+            key = _value_key(v)
+            if key in seen_values:
                 raise SweepError(f"{location(vals, i, where, value=True)}: grid {k}: value {format_value(v)} "
                                  "listed twice")
-            seen.append(v)
-    return [tuple(zip(names, combo, strict=True)) for combo in itertools.product(*(grid[k] for k in names))]
+            seen_values.add(key)
+            values.append((str(k), v, location(vals, i, location(grid, k, where, value=True), value=True)))
+    return {str(k): list(v) for k, v in grid.items()}, [()]
 
 
 def _check_names(d: Any, where: str, locs: dict[str, str]) -> None:
@@ -224,7 +325,7 @@ def _looks_like_file(scenario: str) -> bool:
     return scenario.endswith((".yaml", ".yml")) or "/" in scenario or "\\" in scenario
 
 
-def _missions(m: Any, base: Path, where: str, locs: dict[str, str]) -> list[tuple[str, int | None, float | None]]:
+def _missions(m: Any, base: Path, where: str, locs: dict[str, str]) -> list[Mission]:
     if not isinstance(m, dict) or not m:
         raise SweepError(f"{where}: missions must be a mapping with simulate and/or files")
     for k in m:
@@ -303,24 +404,21 @@ def _simulated(sim: Any, base: Path, at: str, locs: dict[str, str]) -> list[tupl
     return [(f"sim:{scenario}", int(s), None if dur is None else float(dur)) for s in seeds]
 
 
-def _durations(missions: list[tuple[str, int | None, float | None]], mission: str) -> int:
-    return len({d for m, _, d in missions if m == mission})
-
-
-def _mission_tags(missions: list[tuple[str, int | None, float | None]], base: Path) -> dict[str, str]:
+def _mission_tags(missions: list[Mission], base: Path) -> dict[str, str]:
     """A short name per mission for the task ids: the scenario or the file's stem, the path
-    when two files share a stem."""
+    when two files share a stem (made safe by :func:`clean_name`, told apart by
+    :func:`_unique_ids`)."""
     stems: dict[str, set[str]] = {}
     for m, _, _ in missions:
         name = Path(m[4:]).stem if m.startswith("sim:") else Path(m).stem
-        stems.setdefault(name, set()).add(m)
+        stems.setdefault(clean_name(name).lower(), set()).add(m)
     tags = {}
-    for name, ms in stems.items():
+    for ms in stems.values():
         for m in ms:
+            p = Path(m[4:] if m.startswith("sim:") else m)
             if len(ms) == 1:
-                tags[m] = name
+                tags[m] = p.stem
             else:
-                p = Path(m[4:] if m.startswith("sim:") else m)
                 try:
                     rel = p.relative_to(base.resolve())
                 except ValueError:
@@ -329,28 +427,45 @@ def _mission_tags(missions: list[tuple[str, int | None, float | None]], base: Pa
     return tags
 
 
-def _clean(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._=+-]+", "-", name).strip("-") or "task"
+def clean_name(name: str) -> str:
+    """``name`` as safe characters only: letters, digits and ``_=+.~-``, every other run
+    (separators, spaces, control characters) one ``-``; no leading dot or dash (so never
+    ``.``, ``..`` nor a hidden name); ``x`` when nothing is left."""
+    name = re.sub(r"[^A-Za-z0-9_=+.~-]+", "-", name)
+    return name.lstrip(".-").rstrip(".-") or "x"
+
+
+def is_safe_id(task_id: str) -> bool:
+    """A task id that can only name one folder inside ``tasks/`` (see :data:`SAFE_ID`)."""
+    return (isinstance(task_id, str) and 0 < len(task_id) <= _MAX_ID + 20 and SAFE_ID.fullmatch(task_id) is not None
+            and task_id not in (".", ".."))
 
 
 def _unique_ids(tasks: list[Task]) -> list[Task]:
     """Task ids usable as folder names and Dask keys: safe characters, not too long, unique
-    (a short hash of the task's content is added where needed)."""
+    even on a case-insensitive file system (a short hash of the task's content is added to
+    every id of a clash, so the outcome does not depend on the order)."""
     def digest(t: Task) -> str:
         return hashlib.sha1(repr((t.mission, t.seed, t.duration_s, t.params, t.repeat)).encode()).hexdigest()[:8]
 
     ids = []
     for t in tasks:
-        name = _clean(t.id)
+        name = clean_name(t.id)
         if len(name) > _MAX_ID:
-            name = f"{name[:_MAX_ID - 9]}~{digest(t)}"
+            name = f"{name[:_MAX_ID - 9].rstrip('.-')}~{digest(t)}"
         ids.append(name)
     counts: dict[str, int] = {}
     for name in ids:
-        counts[name] = counts.get(name, 0) + 1
+        counts[name.lower()] = counts.get(name.lower(), 0) + 1
     out = []
+    taken: set[str] = set()
     for t, name in zip(tasks, ids, strict=True):
-        if counts[name] > 1:
+        if counts[name.lower()] > 1:
             name = f"{name}~{digest(t)}"
+        base, k = name, 1
+        while name.lower() in taken:  # a hash clash, or an id that already looked like a disambiguated one
+            name, k = f"{base}~{k}", k + 1
+        taken.add(name.lower())
+        assert is_safe_id(name), name
         out.append(Task(name, t.mission, t.seed, t.duration_s, t.params, t.repeat))
     return out

@@ -14,7 +14,6 @@ import io
 import json
 import math
 import os
-import shutil
 import socket
 import sys
 import threading
@@ -24,7 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .spec import Task
+from .folder import remove_own
+from .spec import SweepError, Task
 
 __all__ = ["SweepContext", "simulate_mission", "run_task", "one_line", "RUN_LOG", "RUN_SUMMARY"]
 
@@ -175,9 +175,13 @@ def run_task(task: Task, ctx: SweepContext, mission: dict[str, Any] | None = Non
     t0 = time.perf_counter()
     undo_dask_malloc_trim()
     folder = ctx.task_dir(task)
-    if folder.exists():  # a task run again (resumed, or rescheduled after a worker died) starts clean
-        shutil.rmtree(folder)
-    folder.mkdir(parents=True)
+    try:
+        # a task run again (resumed, or rescheduled after a worker died) starts clean: only its
+        # own folder, one safe name inside the sweep's tasks/ (folder.remove_own refuses the rest)
+        remove_own(Path(ctx.out_dir), task.id, "tasks")
+        folder.mkdir(parents=True)
+    except (SweepError, OSError) as e:
+        return failed_row(task, f"task folder {folder}: {one_line(e)}", worker=worker_name())
     if task.simulated:
         if mission is None:
             return failed_row(task, "no simulated mission given for a simulated task", worker=worker_name())

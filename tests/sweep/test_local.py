@@ -191,6 +191,9 @@ metrics: [{", ".join(METRICS)}]
             proc.wait()
     assert proc.returncode == 130, stderr
     assert "interrupted" in stderr and f"--resume {out}" in stderr
+    assert "Traceback" not in stderr + stdout and "Error" not in stderr, stderr
+    assert stderr.splitlines()[-1] == (f"impala-flow sweep: interrupted; {len(read_rows(out))} of 6 tasks done, "
+                                       f"resume with --resume {out}")
     rows = read_rows(out)
     assert 1 <= len(rows) < 6 and {r["status"] for r in rows} == {"ok"}
     assert "Interrupted:" in (out / "summary.md").read_text(encoding="utf-8")

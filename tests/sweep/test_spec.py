@@ -178,12 +178,16 @@ def test_usage_errors(write_sweep: Callable[..., Path], tmp_path: Path, capsys: 
     assert sweep_main(str(path)) == 2
     assert "-o DIR" in capsys.readouterr().err
     assert sweep_main(str(path), "--resume", str(out)) == 2
-    assert "no results.csv" in capsys.readouterr().err
+    assert "nothing to resume" in capsys.readouterr().err
     assert sweep_main(str(path), "-o", str(out), "--scheduler", "tcp://127.0.0.1:1", "--workers", "2") == 2
     assert "--workers" in capsys.readouterr().err
     out.mkdir()
     (out / "results.csv").write_text("task\n")
     assert sweep_main(str(path), "-o", str(out)) == 2
-    assert f"--resume {out}" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "is not empty and is not a sweep's" in err and "--overwrite" in err
+    assert sweep_main(str(path), "--resume", str(out)) == 2
+    assert "not a sweep folder" in capsys.readouterr().err
+    assert (out / "results.csv").read_text() == "task\n"
     assert sweep_main(str(tmp_path / "missing.yaml"), "-o", str(out)) == 2
     assert "missing.yaml: cannot read" in capsys.readouterr().err
