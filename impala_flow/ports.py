@@ -246,10 +246,13 @@ class InputPort:
             self._remember(s)
         if self.policy == "sampling" and self.group is None:
             return False
-        if fifo and (len(fifo) >= self.maxsize or self._bytes_with(s) > self.maxbytes) and not self._overflow(s):
-            return False
         if fifo:
-            nb = self._nb = self._bytes_with(s)
+            nb = self._bytes_with(s)
+            if len(fifo) >= self.maxsize or nb > self.maxbytes:
+                if not self._overflow(s):
+                    return False
+                nb = self._bytes_with(s) if fifo else 0
+            self._nb = nb
             if nb > st.high_water_bytes:
                 st.high_water_bytes = nb
         fifo.append(s)
@@ -262,8 +265,17 @@ class InputPort:
 
     def _bytes_with(self, s: Sample) -> int:
         """Bytes the (non-empty) FIFO would hold with ``s`` appended."""
+        n = s.nbytes  # sample_nbytes(), inlined
+        if n < 0:
+            n = s.nbytes = data_nbytes(s.data)
         fifo = self._fifo
-        return (self._nb if len(fifo) > 1 else sample_nbytes(fifo[0])) + sample_nbytes(s)
+        if len(fifo) > 1:
+            return self._nb + n
+        h = fifo[0]
+        m = h.nbytes
+        if m < 0:
+            m = h.nbytes = data_nbytes(h.data)
+        return m + n
 
     def _full(self, s: Sample) -> bool:
         fifo = self._fifo
