@@ -261,3 +261,48 @@ def test_data_nbytes_sums_arrays_fields_and_containers() -> None:
     assert DEFAULT_MAXBYTES == 64 * MIB
     with pytest.raises(ValueError, match="maxbytes must be an int >= 1"):
         Input(float, maxbytes=0)
+
+
+# --- the command a user runs ------------------------------------------------------------------
+GRAPH = """
+name: bytes-cli
+clock: {{mode: replay, speed: max}}
+components:
+  src: {{type: t.Arrays}}
+  pair: {{type: t.Pair, params: {{overflow: {overflow}}}}}
+  sink: {{type: t.CollectingSink}}
+connections:
+  - src.a -> pair.a
+  - src.b -> pair.b
+  - pair.out -> sink.x
+"""
+
+
+@pytest.mark.parametrize("overflow", ["drop_oldest", "block"])
+def test_impala_flow_run_prints_the_byte_drops_or_refuses_in_one_line(
+        tmp_path, monkeypatch, capsys, overflow: str) -> None:
+    import impala_flow.cli
+    import impala_flow.cli.run
+    from impala_flow.session import Session
+    from impala_flow.testing import plugin_of
+
+    monkeypatch.setattr(impala_flow.cli.run, "open_session", lambda: Session(
+        extra_plugins={"t": plugin_of(Arrays, Pair, CollectingSink)}, entrypoints=False))
+    graph = tmp_path / "g.yaml"
+    graph.write_text(GRAPH.format(overflow=overflow))
+    try:
+        rc = impala_flow.cli.main(["run", str(graph), "--no-progress"])
+    except SystemExit as e:
+        rc = e.code
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    if overflow == "drop_oldest":
+        assert not rc, err
+        assert "  LOST at pair.a: 14 dropped (the input held its maxbytes), 4 unmatched" in err.splitlines()
+    else:
+        assert rc, err
+        lines = [ln for ln in err.splitlines() if ln.startswith("impala-flow run: error:")]
+        assert lines == [f"impala-flow run: error: component 'pair', input 'a', sample t={600 * MS} ns: BufferError: "
+                         "4 samples (4.0 MiB) wait at this input, the next would take it over its maxbytes 4.0 MiB: "
+                         "its consumer does not take them (a sync partner that stopped?); offline a 'block' input "
+                         "never drops: give it more maxbytes or a drop policy"], err
