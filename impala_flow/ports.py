@@ -67,6 +67,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from heapq import heappush as _heappush
 from itertools import islice
+from operator import attrgetter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -143,10 +144,22 @@ def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
     return a if w < 1.0 else b  # not interpolable: zero-order hold
 
 
-_SCALARS = (int, float, bool, complex, type(None))
+_FIXED = {int: 8, float: 8, bool: 8, complex: 16, type(None): 8, np.float64: 8, np.float32: 4, np.int64: 8,
+          np.int32: 4, np.bool_: 1}  # bytes of scalars, by class
 _MAX_DEPTH = 4  # nesting measured; deeper objects count sys.getsizeof
 _MAX_ITEMS = 64  # items of a container measured; the others are assumed to have their mean size
-_fields: dict[type, tuple[str, ...]] = {}  # dataclass -> its field names ((): not a dataclass)
+_fields: dict[type, Callable[[Any], tuple] | None] = {}  # dataclass -> getter of its fields' values (None: other)
+
+
+def _fields_getter(cls: type) -> Callable[[Any], tuple] | None:
+    if not dataclasses.is_dataclass(cls):
+        return None
+    names = [f.name for f in dataclasses.fields(cls)]
+    if len(names) >= 2:
+        return attrgetter(*names)  # one call gives the tuple of values
+    return lambda obj: tuple(getattr(obj, n) for n in names)
+
+
 
 
 def data_nbytes(obj: Any, _depth: int = 0) -> int:
@@ -157,17 +170,29 @@ def data_nbytes(obj: Any, _depth: int = 0) -> int:
     cls = type(obj)
     if cls is np.ndarray:
         return obj.nbytes
-    if cls in _SCALARS:
-        return 8
+    n = _FIXED.get(cls)
+    if n is not None:
+        return n
     if cls is bytes or cls is str or cls is bytearray:
         return len(obj)
-    names = _fields.get(cls)
-    if names is None:
-        names = _fields[cls] = tuple(f.name for f in dataclasses.fields(cls)) if dataclasses.is_dataclass(cls) else ()
+    try:
+        values = _fields[cls]
+    except KeyError:
+        values = _fields[cls] = _fields_getter(cls)
     if _depth >= _MAX_DEPTH:
         return obj.nbytes if isinstance(obj, (np.ndarray, np.generic)) else sys.getsizeof(obj)
-    if names:
-        return sum(data_nbytes(getattr(obj, n), _depth + 1) for n in names)
+    if values is not None:  # a message: its fields, the common ones without a call
+        total = 0
+        for v in values(obj):
+            c = type(v)
+            if c is np.ndarray:
+                total += v.nbytes
+            elif c is str:
+                total += len(v)
+            else:
+                n = _FIXED.get(c)
+                total += data_nbytes(v, _depth + 1) if n is None else n
+        return total
     if isinstance(obj, (np.ndarray, np.generic, memoryview)):
         return obj.nbytes
     if isinstance(obj, (list, tuple, set, frozenset, dict)):
