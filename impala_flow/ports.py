@@ -160,12 +160,10 @@ def _fields_getter(cls: type) -> Callable[[Any], tuple] | None:
     return lambda obj: tuple(getattr(obj, n) for n in names)
 
 
-
-
 def data_nbytes(obj: Any, _depth: int = 0) -> int:
     """Bytes of ``obj``, cheaply and generically: ``nbytes`` of numpy arrays and scalars,
-    the length of bytes and str, 8 for a number, the sum of a dataclass's fields (field
-    names cached per class) or of a container's items (the first 64 measured, 4 levels
+    the length of bytes and str, 8 for a number, the sum of a dataclass's fields (read by a
+    getter cached per class) or of a container's items (the first 64 measured, 4 levels
     deep at most), ``sys.getsizeof`` otherwise. Shared sub-objects count once per owner."""
     cls = type(obj)
     if cls is np.ndarray:
@@ -310,7 +308,7 @@ class InputPort:
         """Remove the FIFO's head, keeping its byte count (kept from two samples on)."""
         fifo = self._fifo
         s = fifo.popleft()
-        if len(fifo) > 1:
+        if fifo:  # it held two or more: s was measured
             self._nb -= s.nbytes
         return s
 
@@ -414,7 +412,7 @@ class InputPort:
                 s = fifo.popleft()
             except IndexError:
                 raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
-            if len(fifo) > 1:  # the byte count is kept from two samples on (see _pop)
+            if fifo:  # the byte count is kept from two samples on (see _pop)
                 self._nb -= s.nbytes
             return s.data
         return self.take_sample().data
