@@ -173,8 +173,8 @@ class Input(_PortDeclaration):
     half-window in seconds. ``history``: seconds of samples kept for ``at``/``between``.
     ``maxsize`` (samples), ``maxbytes`` (bytes, 64 MiB by default; it bounds the history
     buffer too) and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
-    FIFO (see :mod:`impala_flow.ports`). ``required=False`` lets the input stay unconnected. ``angular=True`` makes
-    ``at()`` interpolate numbers as angles.
+    FIFO (see :mod:`impala_flow.ports`). ``required=False`` lets the input stay
+    unconnected. ``angular=True`` makes ``at()`` interpolate numbers as angles.
     """
 
     def __init__(
