@@ -39,7 +39,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
-from .ports import OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
+from .ports import DEFAULT_MAXBYTES, OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
 
 __all__ = [
     "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
@@ -171,15 +171,17 @@ class Input(_PortDeclaration):
     ``type``: the message type accepted (``object`` accepts anything). ``policy``:
     ``reactive`` or ``sampling``. ``sync``: name of a sync group, ``tolerance`` its
     half-window in seconds. ``history``: seconds of samples kept for ``at``/``between``.
-    ``maxsize`` and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
-    FIFO. ``required=False`` lets the input stay unconnected. ``angular=True`` makes
-    ``at()`` interpolate numbers as angles.
+    ``maxsize`` (samples), ``maxbytes`` (bytes, 64 MiB by default; it bounds the history
+    buffer too) and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
+    FIFO (see :mod:`impala_flow.ports`). ``required=False`` lets the input stay
+    unconnected. ``angular=True`` makes ``at()`` interpolate numbers as angles.
     """
 
     def __init__(
         self, type: type = object, *, policy: str = "reactive", sync: str | None = None,
         tolerance: float = 0.0, history: float | None = None, maxsize: int = 1024,
         overflow: str = "block", required: bool = True, angular: bool = False, doc: str = "",
+        maxbytes: int = DEFAULT_MAXBYTES,
     ) -> None:
         if policy not in POLICIES:
             raise ValueError(f"Input policy must be one of {POLICIES}, got {policy!r}")
@@ -187,12 +189,15 @@ class Input(_PortDeclaration):
             raise ValueError(f"Input overflow must be one of {OVERFLOWS}, got {overflow!r}")
         if maxsize < 1:
             raise ValueError("Input maxsize must be >= 1")
+        if isinstance(maxbytes, bool) or not isinstance(maxbytes, int) or maxbytes < 1:
+            raise ValueError(f"Input maxbytes must be an int >= 1, got {maxbytes!r}")
         self.type = type
         self.policy = policy
         self.sync = sync
         self.tolerance = float(tolerance)
         self.history = history
         self.maxsize = int(maxsize)
+        self.maxbytes = maxbytes
         self.overflow = overflow
         self.required = required
         self.angular = angular

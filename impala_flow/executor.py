@@ -233,13 +233,13 @@ class OfflineExecutor:
                                 self.progress(cur_t, summary.mission_start_ns)
                     if kind == _DELIVER:
                         fifo = a._fifo
-                        if a._fast and len(fifo) < a.maxsize:  # InputPort.push, inlined
+                        if a._fast and not fifo:  # InputPort.push, inlined: a lone sample always fits
                             st = a.stats
                             st.received += 1
                             a._last = b
                             fifo.append(b)
-                            if len(fifo) > st.high_water:
-                                st.high_water = len(fifo)
+                            if st.high_water < 1:
+                                st.high_water = 1
                         elif not a.push(b):
                             continue
                         if heap and heap[0][0] == t and heap[0][1] <= k + 1:

@@ -20,12 +20,31 @@ Input policies
     any input may also keep the samples of the last SECONDS for ``at(t)`` (interpolated
     look-up) and ``between(t0, t1)``.
 
-Overflow policies (``maxsize`` per input)
+Overflow policies (``maxsize`` samples and ``maxbytes`` bytes per input)
     ``block``: the producer waits (real-time executor; the waits and the time spent are
     counted as ``blocked`` / ``blocked_ns`` and printed as BACKPRESSURE in the summary); the
     offline executor never drops and reports the high-water mark. ``drop_oldest`` /
     ``drop_newest``: the sample is dropped and counted. Every count is in the run summary
     and in ``InputPort.stats``.
+
+Byte bounds (``maxbytes``, :data:`DEFAULT_MAXBYTES` = 64 MiB by default)
+    A FIFO also holds at most ``maxbytes`` bytes of samples, whatever their count (1024
+    queued 4 MB grids would be 4 GB): a sample that would take it over is handled by the
+    same overflow policy as a full FIFO, its drops counted apart as ``dropped_maxbytes``
+    (a LOST line of the summary). A sample larger than ``maxbytes`` on its own is still
+    delivered into an empty FIFO (refusing it would make the input useless): the bytes held
+    never exceed ``max(maxbytes, the largest single sample)``. A lone sample is never
+    measured; ``high_water_bytes`` is the most bytes held at once by two samples or more.
+    Offline, ``block`` never drops (the results are those of an unbounded run), so a FIFO
+    whose consumer does not take its samples (a sync partner that stopped) and that
+    reaches ``maxbytes`` fails the run with one line naming the component, the input and the
+    time, instead of growing without bound; the drop policies apply offline as in real
+    time (deterministically). A ``history`` buffer is bounded by ``maxbytes`` too: beyond
+    it, its oldest samples are trimmed (counted as ``history_trimmed``) and ``at(t)`` is
+    :class:`OutOfHistory` before the samples kept (interpolation is unchanged inside them).
+    The size of a sample (:func:`data_nbytes`: arrays' ``nbytes``, bytes and str lengths,
+    dataclass fields and containers summed, ``sys.getsizeof`` otherwise) is computed once
+    and shared by every input it reaches, only when a second sample queues behind it.
 
 Output types
     ``OutputPort.emit`` checks the emitted data against the port's declared type, by class
@@ -39,12 +58,16 @@ Output types
 from __future__ import annotations
 
 import bisect
+import dataclasses
+import sys
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from heapq import heappush as _heappush
+from itertools import islice
+from operator import attrgetter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -53,14 +76,21 @@ from .msgs import freeze
 from .msgs._base import _freezers, _noop
 from .msgs.geometry import wrap_angle
 from .sample import Sample
+from .summary import ComponentError
 
 if TYPE_CHECKING:
     from .component import Component, Input, Output
 
-__all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput", "OutputTypeError"]
+__all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput", "OutputTypeError",
+           "DEFAULT_MAXBYTES", "data_nbytes", "sample_nbytes"]
 
 POLICIES = ("reactive", "sampling")
 OVERFLOWS = ("block", "drop_oldest", "drop_newest")
+
+#: bytes an input FIFO (and, apart, its history buffer) holds at most by default: 16 of
+#: the largest messages of the radar chain (4 MB grids; a Navtech scan is ~2.7 MB), a few
+#: seconds of them at 4 Hz, and 64 MiB per input keeps a graph of tens of inputs < a few GB
+DEFAULT_MAXBYTES = 64 << 20
 
 
 class EmptyInput(LookupError):
@@ -93,6 +123,9 @@ class PortStats:
     high_water: int = 0
     blocked: int = 0  # times a producer waited for room (block policy, real time)
     blocked_ns: int = 0  # total time producers waited
+    dropped_maxbytes: int = 0  # dropped by the overflow policy because the FIFO held maxbytes
+    high_water_bytes: int = 0  # most bytes held at once by two samples or more
+    history_trimmed: int = 0  # history samples trimmed before their time because of maxbytes
 
 
 def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
@@ -111,13 +144,81 @@ def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
     return a if w < 1.0 else b  # not interpolable: zero-order hold
 
 
+_FIXED = {int: 8, float: 8, bool: 8, complex: 16, type(None): 8, np.float64: 8, np.float32: 4, np.int64: 8,
+          np.int32: 4, np.bool_: 1}  # bytes of scalars, by class
+_MAX_DEPTH = 4  # nesting measured; deeper objects count sys.getsizeof
+_MAX_ITEMS = 64  # items of a container measured; the others are assumed to have their mean size
+_fields: dict[type, Callable[[Any], tuple] | None] = {}  # dataclass -> getter of its fields' values (None: other)
+
+
+def _fields_getter(cls: type) -> Callable[[Any], tuple] | None:
+    if not dataclasses.is_dataclass(cls):
+        return None
+    names = [f.name for f in dataclasses.fields(cls)]
+    if len(names) >= 2:
+        return attrgetter(*names)  # one call gives the tuple of values
+    return lambda obj: tuple(getattr(obj, n) for n in names)
+
+
+def data_nbytes(obj: Any, _depth: int = 0) -> int:
+    """Bytes of ``obj``, cheaply and generically: ``nbytes`` of numpy arrays and scalars,
+    the length of bytes and str, 8 for a number, the sum of a dataclass's fields (read by a
+    getter cached per class) or of a container's items (the first 64 measured, 4 levels
+    deep at most), ``sys.getsizeof`` otherwise. Shared sub-objects count once per owner."""
+    cls = type(obj)
+    if cls is np.ndarray:
+        return obj.nbytes
+    n = _FIXED.get(cls)
+    if n is not None:
+        return n
+    if cls is bytes or cls is str or cls is bytearray:
+        return len(obj)
+    try:
+        values = _fields[cls]
+    except KeyError:
+        values = _fields[cls] = _fields_getter(cls)
+    if _depth >= _MAX_DEPTH:
+        return obj.nbytes if isinstance(obj, (np.ndarray, np.generic)) else sys.getsizeof(obj)
+    if values is not None:  # a message: its fields, the common ones without a call
+        total = 0
+        for v in values(obj):
+            c = type(v)
+            if c is np.ndarray:
+                total += v.nbytes
+            elif c is str:
+                total += len(v)
+            else:
+                n = _FIXED.get(c)
+                total += data_nbytes(v, _depth + 1) if n is None else n
+        return total
+    if isinstance(obj, (np.ndarray, np.generic, memoryview)):
+        return obj.nbytes
+    if isinstance(obj, (list, tuple, set, frozenset, dict)):
+        items = list(islice(obj.items() if isinstance(obj, dict) else obj, _MAX_ITEMS))
+        total = sum(data_nbytes(x, _depth + 1) for x in items)
+        return total if len(obj) <= len(items) else total * len(obj) // len(items)
+    return sys.getsizeof(obj)
+
+
+def sample_nbytes(s: Sample) -> int:
+    """:func:`data_nbytes` of ``s.data``, computed once per sample (every input it reaches shares it)."""
+    n = s.nbytes
+    if n < 0:
+        n = s.nbytes = data_nbytes(s.data)
+    return n
+
+
+def _mib(n: int) -> str:
+    return f"{n / (1 << 20):.1f} MiB"
+
+
 class InputPort:
     """One input of one component instance (see the module docstring for policies)."""
 
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected", "rank", "sources", "_fast",
+        "trigger_name", "connected", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb",
     )
 
     def __init__(self, owner: Component, name: str, decl: Input) -> None:
@@ -127,6 +228,9 @@ class InputPort:
         self.policy = decl.policy
         self.maxsize = decl.maxsize
         self.overflow = decl.overflow
+        self.maxbytes = decl.maxbytes
+        self._nb = 0  # bytes of the FIFO's samples, kept while it holds two or more (a lone one is not measured)
+        self._hist_nb = 0  # bytes of the history buffer's samples
         self.angular = decl.angular
         self.stats = PortStats()
         self._fifo: deque[Sample] = deque()
@@ -155,39 +259,95 @@ class InputPort:
         st = self.stats
         st.received += 1
         self._last = s
-        if self._fast:
-            fifo = self._fifo
-            if len(fifo) < self.maxsize:
-                fifo.append(s)
-                if len(fifo) > st.high_water:
-                    st.high_water = len(fifo)
-                return True
+        fifo = self._fifo
+        if self._fast and not fifo:  # a lone sample always fits (and is not measured)
+            fifo.append(s)
+            if st.high_water < 1:
+                st.high_water = 1
+            return True
         if self._history_ns is not None:
             self._remember(s)
         if self.policy == "sampling" and self.group is None:
             return False
-        fifo = self._fifo
-        if len(fifo) >= self.maxsize:
-            if self.overflow == "drop_newest":
-                st.dropped += 1
-                return False
-            if self.overflow == "drop_oldest":
-                fifo.popleft()
-                st.dropped += 1
-            elif self._cond is not None:  # block: real-time producer waits for room
-                with self._cond:
-                    if len(fifo) >= self.maxsize:
-                        t0 = time.perf_counter_ns()
-                        while len(fifo) >= self.maxsize:
-                            self._cond.wait(0.1)
-                        st.blocked += 1
-                        st.blocked_ns += time.perf_counter_ns() - t0
+        if fifo:
+            nb = self._bytes_with(s)
+            if len(fifo) >= self.maxsize or nb > self.maxbytes:
+                if not self._overflow(s):
+                    return False
+                nb = self._bytes_with(s) if fifo else 0
+            self._nb = nb
+            if nb > st.high_water_bytes:
+                st.high_water_bytes = nb
         fifo.append(s)
         n = len(fifo)
         if n > st.high_water:
             st.high_water = n
         if self.group is not None:
             return self.group.match()
+        return True
+
+    def _bytes_with(self, s: Sample) -> int:
+        """Bytes the (non-empty) FIFO would hold with ``s`` appended."""
+        n = s.nbytes  # sample_nbytes(), inlined
+        if n < 0:
+            n = s.nbytes = data_nbytes(s.data)
+        fifo = self._fifo
+        if len(fifo) > 1:
+            return self._nb + n
+        h = fifo[0]
+        m = h.nbytes
+        if m < 0:
+            m = h.nbytes = data_nbytes(h.data)
+        return m + n
+
+    def _full(self, s: Sample) -> bool:
+        fifo = self._fifo
+        return bool(fifo) and (len(fifo) >= self.maxsize or self._bytes_with(s) > self.maxbytes)
+
+    def _pop(self) -> Sample:
+        """Remove the FIFO's head, keeping its byte count (kept from two samples on)."""
+        fifo = self._fifo
+        s = fifo.popleft()
+        if fifo:  # it held two or more: s was measured
+            self._nb -= s.nbytes
+        return s
+
+    def _overflow(self, s: Sample) -> bool:
+        """The FIFO is full (count or bytes) before ``s``: apply the overflow policy;
+        False when ``s`` is dropped."""
+        st, fifo = self.stats, self._fifo
+        if self.overflow == "drop_newest":
+            if len(fifo) >= self.maxsize:
+                st.dropped += 1
+            else:
+                st.dropped_maxbytes += 1
+            return False
+        if self.overflow == "drop_oldest":
+            while self._full(s):
+                if len(fifo) >= self.maxsize:
+                    st.dropped += 1
+                else:
+                    st.dropped_maxbytes += 1
+                self._pop()
+            return True
+        cond = self._cond
+        if cond is not None:  # block: real-time producer waits for room
+            with cond:
+                if self._full(s):
+                    t0 = time.perf_counter_ns()
+                    while self._full(s):
+                        cond.wait(0.1)
+                    st.blocked += 1
+                    st.blocked_ns += time.perf_counter_ns() - t0
+            return True
+        # offline, block: never drops; past maxsize the high-water mark is reported, past maxbytes
+        # the consumer is not taking its samples: refused rather than grown without bound
+        if self._bytes_with(s) > self.maxbytes:
+            raise ComponentError(self.owner.name, self.name, s.timestamp, "process", BufferError(
+                f"{len(fifo)} samples ({_mib(self._bytes_with(s) - sample_nbytes(s))}) wait at this input, "
+                f"the next would take it over its maxbytes {_mib(self.maxbytes)}: its consumer does not take them "
+                f"(a sync partner that stopped?); offline a 'block' input never drops: give it more maxbytes "
+                f"or a drop policy"))
         return True
 
     def _remember(self, s: Sample) -> None:
@@ -199,14 +359,22 @@ class InputPort:
         else:
             ht.append(s.timestamp)
             hs.append(s)
+        nb = self._hist_nb + sample_nbytes(s)
         horizon = ht[-1] - self._history_ns
+        k = 0
         if ht[0] < horizon:
-            k = bisect.bisect_left(ht, horizon)
             # keep one sample before the horizon so at(horizon) still interpolates
-            k = max(0, k - 1)
-            if k:
-                del ht[:k]
-                del hs[:k]
+            k = max(0, bisect.bisect_left(ht, horizon) - 1)
+            nb -= sum(x.nbytes for x in hs[:k])
+        k0 = k
+        while nb > self.maxbytes and k < len(hs) - 1:  # over maxbytes: the oldest go first, one always kept
+            nb -= hs[k].nbytes
+            k += 1
+        self.stats.history_trimmed += k - k0
+        if k:
+            del ht[:k]
+            del hs[:k]
+        self._hist_nb = nb
 
     # --- consumer side ------------------------------------------------------------
     def take_sample(self) -> Sample:
@@ -225,12 +393,12 @@ class InputPort:
         cond = self._cond
         if cond is None:  # offline: one thread
             try:
-                return self._fifo.popleft()
+                return self._pop()
             except IndexError:
                 raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
         with cond:  # real time: pop under the owner's lock (producers check and drop under it)
             try:
-                s = self._fifo.popleft()
+                s = self._pop()
             except IndexError:
                 raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
             cond.notify_all()  # a 'block' producer may be waiting for room
@@ -239,10 +407,14 @@ class InputPort:
     def take(self) -> Any:
         """The data of :meth:`take_sample`."""
         if self._fast:
+            fifo = self._fifo
             try:
-                return self._fifo.popleft().data
+                s = fifo.popleft()
             except IndexError:
                 raise EmptyInput(f"input '{self.name}' of '{self.owner.name}' is empty") from None
+            if fifo:  # the byte count is kept from two samples on (see _pop)
+                self._nb -= s.nbytes
+            return s.data
         return self.take_sample().data
 
     def get(self, default: Any = None) -> Any:
@@ -338,11 +510,11 @@ class SyncGroup:
             lo = min(heads)
             if max(heads) - lo <= self.tolerance_ns:
                 for m in members:
-                    m._current = m._fifo.popleft()
+                    m._current = m._pop()
                 return True
             for m, h in zip(members, heads, strict=True):
                 if h == lo:
-                    m._fifo.popleft()
+                    m._pop()
                     m.stats.unmatched += 1
 
 

@@ -14,16 +14,18 @@ class Sample:
     uses the same unit); ``seq`` counts the samples of the output that emitted it;
     ``origin`` names that output as ``component.port``. Arrays inside ``data`` are
     read-only once emitted, so a sample is shared, never copied, by every input it
-    reaches.
+    reaches. ``nbytes`` caches the size of ``data`` once an input bounded in bytes has
+    measured it (-1 until then; see :func:`impala_flow.ports.sample_nbytes`).
     """
 
-    __slots__ = ("timestamp", "data", "seq", "origin")
+    __slots__ = ("timestamp", "data", "seq", "origin", "nbytes")
 
     def __init__(self, timestamp: int, data: Any, seq: int = 0, origin: str = "") -> None:
         self.timestamp = timestamp
         self.data = data
         self.seq = seq
         self.origin = origin
+        self.nbytes = -1
 
     @property
     def t_ns(self) -> int:

@@ -40,6 +40,10 @@ class ComponentError(RuntimeError):
         super().__init__(f"{where}: {type(exc).__name__}: {exc}")
 
 
+#: how a kind of loss at an input is printed
+_KINDS = {"dropped_maxbytes": "dropped (the input held its maxbytes)"}
+
+
 @dataclass
 class RunSummary:
     graph: str = "graph"
@@ -68,10 +72,11 @@ class RunSummary:
         return self.mission_s / self.wall_s if self.wall_s > 0 else float("inf")
 
     def drops(self) -> dict[str, dict[str, int]]:
-        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m, "unconsumed": k}}."""
+        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m, "unconsumed": k}}
+        (``dropped_maxbytes``: dropped because the FIFO held its ``maxbytes``)."""
         out = {}
         for k, st in self.inputs.items():
-            lost = {n: st[n] for n in ("dropped", "unmatched", "unconsumed") if st.get(n)}
+            lost = {n: st[n] for n in ("dropped", "dropped_maxbytes", "unmatched", "unconsumed") if st.get(n)}
             if lost:
                 out[k] = lost
         return out
@@ -146,7 +151,7 @@ class RunSummary:
             lines.append(f"  {name}: " + ", ".join(bits))
         drops = self.drops()
         for k, v in drops.items():
-            lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
+            lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {_KINDS.get(kind, kind)}" for kind, n in v.items()))
         unread = self.source_losses()
         for k, v in unread.items():
             n = "an unknown number of" if v["unreadable"] is None else v["unreadable"]
@@ -157,6 +162,10 @@ class RunSummary:
             lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {kind}" for kind, n in v.items()))
         if not drops and not unread and not own:
             lines.append("  no sample dropped")
+        for k, st in self.inputs.items():
+            if st.get("history_trimmed"):
+                lines.append(f"  TRIMMED at {k}: {st['history_trimmed']} history samples trimmed before their time "
+                             f"(the history buffer held its maxbytes)")
         for k, v in self.backpressure().items():
             lines.append(f"  BACKPRESSURE at {k}: producers blocked {v['blocked']} times, "
                          f"{v['blocked_s']:.3f} s in total (block policy: the input was full)")
