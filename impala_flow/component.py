@@ -173,13 +173,15 @@ class Input(_PortDeclaration):
     half-window in seconds. ``history``: seconds of samples kept for ``at``/``between``.
     ``maxsize`` and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
     FIFO. ``required=False`` lets the input stay unconnected. ``angular=True`` makes
-    ``at()`` interpolate numbers as angles.
+    ``at()`` interpolate numbers as angles. ``validate=False`` lets invalid messages (non-finite,
+    impossible values) through instead of dropping and counting them (:mod:`impala_flow.ports`).
     """
 
     def __init__(
         self, type: type = object, *, policy: str = "reactive", sync: str | None = None,
         tolerance: float = 0.0, history: float | None = None, maxsize: int = 1024,
         overflow: str = "block", required: bool = True, angular: bool = False, doc: str = "",
+        validate: bool = True,
     ) -> None:
         if policy not in POLICIES:
             raise ValueError(f"Input policy must be one of {POLICIES}, got {policy!r}")
@@ -196,6 +198,7 @@ class Input(_PortDeclaration):
         self.overflow = overflow
         self.required = required
         self.angular = angular
+        self.validate = bool(validate)
         self.doc = doc
         self.name = ""
 

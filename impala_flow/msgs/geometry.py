@@ -7,7 +7,7 @@ from dataclasses import field
 
 import numpy as np
 
-from ._base import message
+from ._base import invalid_fields, message
 
 __all__ = ["HEADING_UNKNOWN_VAR_RAD2", "Scalar", "Pose2D",
            "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D", "wrap_angle"]
@@ -116,6 +116,13 @@ class Grid:
     origin_y_m: float
     frame: str = "map"
     pose: Pose2D | None = None
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers (see :func:`~impala_flow.msgs.invalid_fields`), or ``cell_m <= 0``."""
+        why = invalid_fields(self)
+        if why is None and not self.cell_m > 0:
+            return "cell_m <= 0"
+        return why
 
 
 @message("impala.Points2D", version=1)

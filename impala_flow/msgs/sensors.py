@@ -6,7 +6,7 @@ from dataclasses import field
 
 import numpy as np
 
-from ._base import message
+from ._base import invalid_fields, message
 
 __all__ = [
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
@@ -47,6 +47,19 @@ class RadarConfig:
     height_m: float = 1.3
     window: str = "hann"  # weighting before the FFT: "hann" (peaks ~4 bins wide) or "rect"
     range_offset_m: float = 0.0  # range of bin 0 (bin k: range_offset_m + k range_per_bin_m)
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a quantity every range and time formula divides by that is not > 0."""
+        why = invalid_fields(self)
+        if why is not None:
+            return why
+        if (self.bandwidth_hz > 0 and self.modulation_hz > 0 and self.bin_hz > 0 and self.rotation_hz > 0
+                and self.n_bins > 0 and self.beams_per_turn > 0 and 0.0 <= self.range_min_m < self.range_max_m):
+            return None
+        for name in ("bandwidth_hz", "modulation_hz", "bin_hz", "rotation_hz", "n_bins", "beams_per_turn"):
+            if not getattr(self, name) > 0:
+                return f"{name} <= 0"
+        return "range_min_m, range_max_m not 0 <= min < max"
 
     @property
     def range_per_bin_m(self) -> float:
@@ -137,12 +150,13 @@ class RadarScan:
     config: RadarConfig
 
 
-@message("impala.RadarDetections", version=1)
+@message("impala.RadarDetections", version=1, nan_ok=("radial_speed_mps", "score"))
 class RadarDetections:
     """Targets detected in beams: one entry per detection, with its beam's time and azimuth.
 
     ``radial_speed_mps`` follows the seed's sign (negative when the target approaches);
     ``score`` is the pairing confidence in [0, 1]; ``beam`` the beam index in its turn.
+    ``radial_speed_mps`` and ``score`` are NaN when not measured (a power-only radar).
     """
 
     turn: int
@@ -155,9 +169,9 @@ class RadarDetections:
     score: np.ndarray
 
 
-@message("impala.Speed", version=1)
+@message("impala.Speed", version=1, nan_ok=("std_mps",))
 class Speed:
-    """Forward speed (odometer, or estimated: then ``std_mps`` is its standard deviation)."""
+    """Forward speed (odometer, or estimated: then ``std_mps`` is its standard deviation; NaN: unknown)."""
 
     speed_mps: float
     std_mps: float = float("nan")

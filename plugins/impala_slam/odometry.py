@@ -474,8 +474,10 @@ class DistortionOdometry(Component):
 
     def summary(self) -> dict:
         core = getattr(self, "core", None)
-        if core is None or not core.turns:
+        if core is None:
             return {}
+        if not core.turns:  # no turn reached the estimator: say why (turns cut short)
+            return {"turns": 0, "partial_turns": self.partial_turns} if self.partial_turns else {}
         return {
             "turns": core.turns,
             "degraded_turns": core.degraded,
