@@ -49,8 +49,15 @@ class RadarConfig:
     range_offset_m: float = 0.0  # range of bin 0 (bin k: range_offset_m + k range_per_bin_m)
 
     def invalid_reason(self) -> str | None:
-        """Non-finite numbers, or a quantity every range and time formula divides by that is not > 0."""
-        why = invalid_fields(self)
+        """Non-finite numbers, or a quantity every range and time formula divides by that is not > 0.
+
+        Checked on every beam (each carries its config): the common case is one expression
+        (x * 0 is 0 for a finite x, NaN for NaN and +-inf); the field-by-field walk only names
+        what is wrong."""
+        finite = (self.f0_hz * 0.0 + self.bandwidth_hz * 0.0 + self.modulation_hz * 0.0 + self.bin_hz * 0.0
+                  + self.beam_width_rad * 0.0 + self.rotation_hz * 0.0 + self.range_min_m * 0.0
+                  + self.range_max_m * 0.0 + self.height_m * 0.0 + self.range_offset_m * 0.0) == 0.0
+        why = None if finite else invalid_fields(self)
         if why is not None:
             return why
         if (self.bandwidth_hz > 0 and self.modulation_hz > 0 and self.bin_hz > 0 and self.rotation_hz > 0
@@ -114,6 +121,16 @@ class RadarBeam:
     down: np.ndarray
     config: RadarConfig
     chirp: int = 0
+
+    def invalid_reason(self) -> str | None:
+        """:func:`~impala_flow.msgs.invalid_fields`, with a fast path for the valid beam (the
+        common case, checked on every beam entering an input)."""
+        up, down = self.up, self.down
+        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or np.isfinite(up).all())
+                and (down.size == 0 or down.dtype.kind not in "fc" or np.isfinite(down).all())):
+            why = self.config.invalid_reason()
+            return None if why is None else f"config: {why}"
+        return invalid_fields(self)
 
 
 @message("impala.RadarBeam", version=1)

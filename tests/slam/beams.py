@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from impala_flow.msgs import RadarBeam
+from impala_flow.msgs import Pose2D, RadarBeam
 from impala_radar.sim.presets import NAVTECH
 
 #: NAVTECH with fewer bins (1000 x 4.38 cm = 43.8 m): the same geometry, a quarter of the work
@@ -35,9 +35,7 @@ def navtech_beams(turns: int = 5, seed: int = 0, config=CONFIG) -> list[tuple[in
     dt_s = 1.0 / (config.rotation_hz * m)
     for j in range(turns * m):
         t = 1.0 + j * dt_s
-        th = YAW_RATE_RADPS * (t - 1.0)
-        x = SPEED_MPS * (t - 1.0) * (np.sinc(th / math.pi) if th else 1.0) * math.cos(th / 2)
-        y = SPEED_MPS * (t - 1.0) * (np.sinc(th / math.pi) if th else 1.0) * math.sin(th / 2)
+        x, y, th = pose_at(t - 1.0)
         az = -2.0 * math.pi * (j % m) / m  # clockwise, as Navtech
         rel = pts - (x, y)
         c, s = math.cos(th), math.sin(th)
@@ -52,6 +50,19 @@ def navtech_beams(turns: int = 5, seed: int = 0, config=CONFIG) -> list[tuple[in
         out.append((int(round(t * 1e9)), "beams",
                     RadarBeam(az, j // m, j % m, power.astype(np.float32), np.zeros(0, np.float32), config)))
     return out
+
+
+def pose_at(t_s: float) -> tuple[float, float, float]:
+    """The unicycle's pose (x, y, heading) ``t_s`` seconds after the first beam (exact arc)."""
+    th = YAW_RATE_RADPS * t_s
+    chord = SPEED_MPS * t_s * (np.sinc(th / (2 * math.pi)) if th else 1.0)
+    return chord * math.cos(th / 2), chord * math.sin(th / 2), th
+
+
+def truth_poses(turns: int = 5, config=CONFIG) -> list[tuple[int, str, Pose2D]]:
+    """(t_ns, "truth", pose) every 0.05 s over the beams of :func:`navtech_beams`, frame map."""
+    return [(int(round((1.0 + t) * 1e9)), "truth", Pose2D(*pose_at(t), frame="map"))
+            for t in np.arange(0.0, turns / config.rotation_hz, 0.05)]
 
 
 def corrupt(beams: list[tuple[int, str, RadarBeam]], case: str, seed: int = 1) -> list[tuple[int, str, RadarBeam]]:

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from impala_eval.evaluator import TrajectoryEvaluator
 from impala_eval.tracking import TrackingEvaluator
 from impala_flow import Component, Input, Param
 from impala_flow.msgs import Grid, ObjectStates, RadarBeam
@@ -26,7 +27,7 @@ from impala_slam.rslam import RSlam
 from impala_tracking.detector import MoverDetector
 from impala_tracking.tracker import Tracker
 
-from .beams import CASES, SPEED_MPS, YAW_RATE_RADPS, corrupt, navtech_beams
+from .beams import CASES, SPEED_MPS, YAW_RATE_RADPS, corrupt, navtech_beams, truth_poses
 
 N = 201
 
@@ -145,7 +146,8 @@ def _non_finite(obj, path="") -> list[str]:
 
 
 def _odometry():
-    return ([DistortionOdometry("odometry", map_period_s=1e6)], ["src.beams -> odometry.beams"],
+    return ([DistortionOdometry("odometry", map_period_s=1e6), TrajectoryEvaluator("eval", title="odometry")],
+            ["src.beams -> odometry.beams", "odometry.pose -> eval.estimate", "src.truth -> eval.truth"],
             ["odometry.pose", "odometry.twist", "odometry.degraded", "odometry.map"], ["odometry.beams"])
 
 
@@ -208,7 +210,9 @@ def test_chains_on_degenerate_beams_never_crash_never_emit_non_finite_and_say_so
     if chain == "datmo":  # no mover: the truth is empty, in the tracker's frame
         script += [(t, "truth", ObjectStates(np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros((0, 2)), frame="radar"))
                    for t in range(1_000_000_000, beams[-1][0], 100_000_000)]
-        script.sort(key=lambda s: s[0])
+    if chain == "odometry":
+        script += truth_poses()
+    script.sort(key=lambda s: s[0])
     sink = RawSink("sink", ports=[o.replace(".", "_") for o in outs])
     summary = run_components(ScriptedSource("src", script, ports=["beams", "truth"]), *comps, sink,
                              connections=conns + [f"{o} -> sink.{o.replace('.', '_')}" for o in outs])
@@ -224,6 +228,8 @@ def test_chains_on_degenerate_beams_never_crash_never_emit_non_finite_and_say_so
         assert summary.inputs[entry]["invalid"] == n_bad
     if case in ("nan", "inf"):  # nothing reached the components: nothing came out
         assert n_bad == len(beams) and not emitted
+        if chain == "odometry":
+            assert _counters(summary, "eval")["not_scored"].startswith("not enough poses (estimate 0")
         return
     if case in ("nan10", "inf10"):
         assert 0.05 * len(beams) < n_bad < 0.15 * len(beams)
@@ -239,7 +245,12 @@ def test_chains_on_degenerate_beams_never_crash_never_emit_non_finite_and_say_so
     if case in ("single", "nan10", "inf10"):  # turns short of beams: counted as partial
         entry = entries[-1].split(".")[0]
         assert _counters(summary, entry).get("partial_turns", 0) >= (4 if case == "single" else 1)
-    if case in ("clean", "nan10", "inf10") and chain == "odometry":
-        twists = sink.got["odometry_twist"]
-        assert twists and all(abs(t.speed_mps - SPEED_MPS) < 0.1 for t in twists)
-        assert all(abs(t.yaw_rate_radps - YAW_RATE_RADPS) < 0.01 for t in twists)
+    if chain == "odometry":
+        scored = _counters(summary, "eval")
+        if case in ("clean", "nan10", "inf10"):  # against the unicycle the beams were made from
+            twists = sink.got["odometry_twist"]
+            assert twists and all(abs(t.speed_mps - SPEED_MPS) < 0.1 for t in twists)
+            assert all(abs(t.yaw_rate_radps - YAW_RATE_RADPS) < 0.01 for t in twists)
+            assert scored["ate_rmse_m"] < 0.1
+        else:  # fewer than two poses: the evaluator says why it scored nothing
+            assert scored["not_scored"].startswith("not enough poses")
