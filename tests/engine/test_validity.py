@@ -132,3 +132,13 @@ connections: ["src.out -> sink.x"]
     summary, net = run_graph_text(text, Src, CollectingSink)
     assert [s.speed_mps for s in net.components["sink"].values()] == [1.0, 2.0, 4.0, 5.0, 7.0, 8.0]
     assert summary.invalid() == {"sink.x": {"non-finite speed_mps": 4}}
+
+
+def test_real_time_executor_drops_and_counts_invalid_samples_too():
+    from .test_runtime import make_net, run_rt
+
+    samples = [(k * MS, "p", _pose(np.nan if k % 4 == 1 else float(k))) for k in range(12)]
+    sink = CollectingSink("sink")
+    summary = run_rt(make_net(ScriptedSource("src", samples), sink, connections=["src.p -> sink.x"]))
+    assert [p.x_m for p in sink.values()] == [float(k) for k in range(12) if k % 4 != 1]
+    assert summary.invalid() == {"sink.x": {"non-finite x_m": 3}}

@@ -22,6 +22,7 @@ from impala_radar.sim.presets import IMPALA
 from impala_slam.ekf_slam import EkfSlam
 from impala_slam.kissicp import KissIcp
 from impala_slam.odometry import DistortionOdometry
+from impala_slam.posegraph import PoseGraph
 from impala_slam.registration import FmtRegistration
 from impala_slam.rslam import RSlam
 from impala_tracking.detector import MoverDetector
@@ -156,11 +157,13 @@ def _fmt_ekf():
     return ([DistortionOdometry("odometry", map_period_s=1e6),
              PanoramicBuilder("panoramic", cell_m=0.2, range_max_m=40.0, range_min_m=2.0, reference="middle",
                               normalise="beam_median"),
-             FmtRegistration("fmt", **fmt), EkfSlam("ekf", **fmt, trajectory_period_s=0.25, map_period_s=0.5)],
+             FmtRegistration("fmt", **fmt), EkfSlam("ekf", **fmt, trajectory_period_s=0.25, map_period_s=0.5),
+             PoseGraph("posegraph", solver="isam2", trajectory_period_s=0.25)],
             ["src.beams -> odometry.beams", "src.beams -> panoramic.beams", "odometry.twist -> panoramic.twist",
              "panoramic.image -> fmt.image", "panoramic.image -> ekf.image", "fmt.transform -> ekf.registration",
-             "odometry.pose -> ekf.odometry"],
-            ["ekf.pose", "ekf.trajectory", "ekf.map", "ekf.constraints", "fmt.transform", "fmt.pose"],
+             "odometry.pose -> ekf.odometry", "ekf.constraints -> posegraph.constraints"],
+            ["ekf.pose", "ekf.trajectory", "ekf.map", "ekf.constraints", "fmt.transform", "fmt.pose",
+             "posegraph.trajectory"],
             ["odometry.beams", "panoramic.beams"])
 
 
