@@ -182,7 +182,10 @@ class InputPort:
         chk = _check_of(type(data))
         if chk is None:
             return False
-        why = chk(data)
+        try:
+            why = chk(data)
+        except Exception as e:  # a check that cannot read the sample (wrong field types): invalid
+            why = f"unreadable ({type(e).__name__})"
         if why is None:
             return False
         st = self.stats

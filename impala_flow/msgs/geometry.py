@@ -59,6 +59,13 @@ class Pose2D:
     def as_array(self) -> np.ndarray:
         return np.array([self.x_m, self.y_m, self.theta_rad])
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a covariance neither empty nor 3 x 3."""
+        why = invalid_fields(self)
+        if why is None and np.size(self.cov_xyt) and np.shape(self.cov_xyt) != (3, 3):
+            return "cov_xyt neither empty nor 3 x 3"
+        return why
+
     @property
     def heading_known(self) -> bool:
         """False when ``cov_xyt[2, 2] >= HEADING_UNKNOWN_VAR_RAD2``: ``theta_rad`` is then only a
@@ -118,10 +125,13 @@ class Grid:
     pose: Pose2D | None = None
 
     def invalid_reason(self) -> str | None:
-        """Non-finite numbers (see :func:`~impala_flow.msgs.invalid_fields`), or ``cell_m <= 0``."""
+        """Non-finite numbers (see :func:`~impala_flow.msgs.invalid_fields`), ``cell_m <= 0`` or
+        ``data`` not 2-D."""
         why = invalid_fields(self)
         if why is None and not self.cell_m > 0:
             return "cell_m <= 0"
+        if why is None and np.ndim(self.data) != 2:
+            return "data not 2-D"
         return why
 
 

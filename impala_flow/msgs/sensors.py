@@ -166,6 +166,14 @@ class RadarScan:
     down: np.ndarray
     config: RadarConfig
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a power image whose rows are not the beams."""
+        why = invalid_fields(self)
+        if why is None and not (np.ndim(self.power) == 2
+                                and len(self.t_ns) == len(self.azimuth_rad) == len(self.power)):
+            return "t_ns, azimuth_rad and power rows differ in length"
+        return why
+
 
 @message("impala.RadarDetections", version=1, nan_ok=("radial_speed_mps", "score"))
 class RadarDetections:
@@ -184,6 +192,16 @@ class RadarDetections:
     radial_speed_mps: np.ndarray
     amplitude: np.ndarray
     score: np.ndarray
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers (NaN allowed in ``radial_speed_mps`` and ``score``), or columns of
+        different lengths."""
+        why = invalid_fields(self)
+        n = len(self.t_ns)
+        if why is None and not (len(self.beam) == len(self.azimuth_rad) == len(self.range_m) == n
+                                and len(self.radial_speed_mps) == len(self.amplitude) == len(self.score) == n):
+            return "detection columns differ in length"
+        return why
 
 
 @message("impala.Speed", version=1, nan_ok=("std_mps",))
@@ -211,6 +229,16 @@ class ObjectStates:
     cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     frame: str = "map"
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or rows that do not match: ``ids`` (n), ``xy_m`` and ``v_xy_mps``
+        (n, 2), ``cov`` (n, 4, 4) or empty."""
+        why = invalid_fields(self)
+        n = len(self.ids)
+        if why is None and not (np.shape(self.xy_m) == np.shape(self.v_xy_mps) == (n, 2)
+                                and (np.size(self.cov) == 0 or np.shape(self.cov) == (n, 4, 4))):
+            return "ids, xy_m, v_xy_mps, cov rows do not match"
+        return why
+
 
 @message("impala.TrackExistence", version=1)
 class TrackExistence:
@@ -223,3 +251,13 @@ class TrackExistence:
     probability: np.ndarray
     confirmed: np.ndarray
     frame: str = "map"
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, a probability outside [0, 1], or rows that do not match."""
+        why = invalid_fields(self)
+        n = len(self.ids)
+        if why is None and not (np.shape(self.xy_m) == (n, 2) and len(self.probability) == len(self.confirmed) == n):
+            return "ids, xy_m, probability, confirmed rows do not match"
+        if why is None and n and not (np.min(self.probability) >= 0.0 and np.max(self.probability) <= 1.0):
+            return "probability outside [0, 1]"
+        return why

@@ -142,3 +142,30 @@ def test_real_time_executor_drops_and_counts_invalid_samples_too():
     summary = run_rt(make_net(ScriptedSource("src", samples), sink, connections=["src.p -> sink.x"]))
     assert [p.x_m for p in sink.values()] == [float(k) for k in range(12) if k % 4 != 1]
     assert summary.invalid() == {"sink.x": {"non-finite x_m": 3}}
+
+
+def test_impossible_shapes_and_values_are_invalid():
+    from impala_flow.msgs import ObjectStates, RadarScan, TrackExistence
+
+    ids = np.array([1, 2])
+    assert ObjectStates(ids, np.zeros((2, 2)), np.zeros((2, 2))).invalid_reason() is None
+    assert ObjectStates(ids, np.zeros((3, 2)), np.zeros((2, 2))).invalid_reason() == \
+        "ids, xy_m, v_xy_mps, cov rows do not match"
+    assert TrackExistence(ids, np.zeros((2, 2)), np.array([0.5, 1.5]), np.ones(2, bool)).invalid_reason() == \
+        "probability outside [0, 1]"
+    assert Pose2D(0.0, 0.0, 0.0, np.eye(2)).invalid_reason() == "cov_xyt neither empty nor 3 x 3"
+    assert Grid(np.zeros(4), 1.0, 0.0, 0.0).invalid_reason() == "data not 2-D"
+    scan = RadarScan(0, np.zeros(3, np.int64), np.zeros(3), np.zeros((2, 8)), np.zeros(0), IMPALA)
+    assert scan.invalid_reason() == "t_ns, azimuth_rad and power rows differ in length"
+
+
+def test_a_check_that_cannot_read_the_sample_makes_it_invalid_not_a_crash():
+    from impala_flow.msgs import ObjectStates
+
+    bad = ObjectStates(None, np.zeros((1, 2)), np.zeros((1, 2)))  # len(None) raises inside the check
+    good = ObjectStates(np.array([1]), np.zeros((1, 2)), np.zeros((1, 2)))
+    sink = CollectingSink("sink")
+    summary = run_components(ScriptedSource("src", [(0, "p", bad), (1, "p", good)]), sink,
+                             connections=["src.p -> sink.x"])
+    assert sink.values() == [good]
+    assert summary.invalid() == {"sink.x": {"unreadable (TypeError)": 1}}
