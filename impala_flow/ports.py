@@ -178,15 +178,19 @@ class InputPort:
         and the first of its reason at this input logged). The executors call it first."""
         if not self.validate:
             return False
-        data = s.data
-        chk = _check_of(type(data))
-        if chk is None:
-            return False
-        try:
-            why = chk(data)
-        except Exception as e:  # a check that cannot read the sample (wrong field types): invalid
-            why = f"unreadable ({type(e).__name__})"
-        if why is None:
+        why = s.invalid
+        if why is None:  # not checked yet (a sample fanned out to several inputs is checked once)
+            data = s.data
+            chk = _check_of(type(data))
+            if chk is None:
+                why = ""
+            else:
+                try:
+                    why = chk(data) or ""
+                except Exception as e:  # a check that cannot read the sample (wrong field types): invalid
+                    why = f"unreadable ({type(e).__name__})"
+            s.invalid = why
+        if not why:
             return False
         st = self.stats
         st.received += 1

@@ -14,16 +14,19 @@ class Sample:
     uses the same unit); ``seq`` counts the samples of the output that emitted it;
     ``origin`` names that output as ``component.port``. Arrays inside ``data`` are
     read-only once emitted, so a sample is shared, never copied, by every input it
-    reaches.
+    reaches (and checked once for validity: :mod:`impala_flow.ports`).
     """
 
-    __slots__ = ("timestamp", "data", "seq", "origin")
+    __slots__ = ("timestamp", "data", "seq", "origin", "invalid")
 
     def __init__(self, timestamp: int, data: Any, seq: int = 0, origin: str = "") -> None:
         self.timestamp = timestamp
         self.data = data
         self.seq = seq
         self.origin = origin
+        # why ``data`` is invalid ('' when valid, None before any input checked it): the first
+        # input that checks a sample keeps the verdict, so a fanned-out sample is checked once
+        self.invalid: str | None = None
 
     @property
     def t_ns(self) -> int:

@@ -169,3 +169,11 @@ def test_a_check_that_cannot_read_the_sample_makes_it_invalid_not_a_crash():
                              connections=["src.p -> sink.x"])
     assert sink.values() == [good]
     assert summary.invalid() == {"sink.x": {"unreadable (TypeError)": 1}}
+
+
+def test_a_fanned_out_invalid_sample_is_counted_at_every_input_it_reaches():
+    samples = [(0, "p", _pose(np.inf)), (1, "p", _pose(1.0))]
+    a, b = CollectingSink("a"), CollectingSink("b")
+    summary = run_components(ScriptedSource("src", samples), a, b, connections=["src.p -> a.x", "src.p -> b.x"])
+    assert summary.invalid() == {"a.x": {"non-finite x_m": 1}, "b.x": {"non-finite x_m": 1}}
+    assert len(a.values()) == len(b.values()) == 1
