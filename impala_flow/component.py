@@ -175,6 +175,8 @@ class Input(_PortDeclaration):
     buffer too) and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
     FIFO (see :mod:`impala_flow.ports`). ``required=False`` lets the input stay
     unconnected. ``angular=True`` makes ``at()`` interpolate numbers as angles.
+    ``validate=False`` lets invalid messages (non-finite, impossible values) through instead
+    of dropping and counting them (:mod:`impala_flow.ports`).
     """
 
     def __init__(
@@ -182,6 +184,7 @@ class Input(_PortDeclaration):
         tolerance: float = 0.0, history: float | None = None, maxsize: int = 1024,
         overflow: str = "block", required: bool = True, angular: bool = False, doc: str = "",
         maxbytes: int = DEFAULT_MAXBYTES,
+        validate: bool = True,
     ) -> None:
         if policy not in POLICIES:
             raise ValueError(f"Input policy must be one of {POLICIES}, got {policy!r}")
@@ -201,6 +204,7 @@ class Input(_PortDeclaration):
         self.overflow = overflow
         self.required = required
         self.angular = angular
+        self.validate = bool(validate)
         self.doc = doc
         self.name = ""
 

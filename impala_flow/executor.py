@@ -234,6 +234,8 @@ class OfflineExecutor:
                     if kind == _DELIVER:
                         fifo = a._fifo
                         if a._fast and not fifo:  # InputPort.push, inlined: a lone sample always fits
+                            if a.validate and a.invalid(b):
+                                continue  # dropped and counted as invalid
                             st = a.stats
                             st.received += 1
                             a._last = b

@@ -20,6 +20,16 @@ Input policies
     any input may also keep the samples of the last SECONDS for ``at(t)`` (interpolated
     look-up) and ``between(t0, t1)``.
 
+Validity (``validate=True``, the default of every input)
+    a sample whose data is a message (:mod:`impala_flow.msgs`) is checked where it enters the
+    input, before any policy, by its type's ``invalid_reason()`` (non-finite numbers,
+    impossible values). An invalid sample is dropped, counted as ``invalid`` (and by reason in
+    ``invalid_reasons``) and never reaches the component: the first of each reason at each
+    input is one WARNING line naming the component, the input, the sample's time and origin;
+    the rest are only counted, and the run summary prints one ``INVALID at component.input``
+    line per input with the count of each reason. ``Input(..., validate=False)`` passes every
+    sample through (a recorder that must keep what it is given, a diagnostic).
+
 Overflow policies (``maxsize`` samples and ``maxbytes`` bytes per input)
     ``block``: the producer waits (real-time executor; the waits and the time spent are
     counted as ``blocked`` / ``blocked_ns`` and printed as BACKPRESSURE in the summary); the
@@ -64,7 +74,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from heapq import heappush as _heappush
 from itertools import islice
 from operator import attrgetter
@@ -126,6 +136,22 @@ class PortStats:
     dropped_maxbytes: int = 0  # dropped by the overflow policy because the FIFO held maxbytes
     high_water_bytes: int = 0  # most bytes held at once by two samples or more
     history_trimmed: int = 0  # history samples trimmed before their time because of maxbytes
+    invalid: int = 0  # dropped on arrival: the message's invalid_reason() was not None
+    invalid_reasons: dict[str, int] = field(default_factory=dict)  # reason -> count
+
+
+#: message class -> its validity check (None: the class is not checked)
+_CHECKS: dict[type, Callable[[Any], str | None] | None] = {}
+
+
+def _check_of(cls: type) -> Callable[[Any], str | None] | None:
+    """The ``invalid_reason`` of a message class (looked up once per class)."""
+    try:
+        return _CHECKS[cls]
+    except KeyError:
+        chk = getattr(cls, "invalid_reason", None) if "__impala_schema__" in cls.__dict__ else None
+        _CHECKS[cls] = chk
+        return chk
 
 
 def _interpolate(a: Any, b: Any, w: float, angular: bool) -> Any:
@@ -218,7 +244,7 @@ class InputPort:
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb",
+        "trigger_name", "connected", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb", "validate",
     )
 
     def __init__(self, owner: Component, name: str, decl: Input) -> None:
@@ -248,14 +274,50 @@ class InputPort:
         # set by the offline executor for its run: a reactive input outside any sync group,
         # without history, on one thread: push() and take() skip every other case
         self._fast = False
+        self.validate = bool(getattr(decl, "validate", True))
+
+    # --- validity -------------------------------------------------------------------
+    def invalid(self, s: Sample) -> bool:
+        """True when ``s`` must be dropped as invalid (then counted as received and invalid,
+        and the first of its reason at this input logged). The executors call it first."""
+        if not self.validate:
+            return False
+        why = s.invalid
+        if why is None:  # not checked yet (a sample fanned out to several inputs is checked once)
+            data = s.data
+            chk = _check_of(type(data))
+            if chk is None:
+                why = ""
+            else:
+                try:
+                    why = chk(data) or ""
+                except Exception as e:  # a check that cannot read the sample (wrong field types): invalid
+                    why = f"unreadable ({type(e).__name__})"
+            s.invalid = why
+        if not why:
+            return False
+        st = self.stats
+        st.received += 1
+        st.invalid += 1
+        n = st.invalid_reasons.get(why, 0) + 1
+        st.invalid_reasons[why] = n
+        if n == 1:
+            self.owner.log.warning(
+                "input '%s': sample t=%d ns from %s dropped as invalid: %s (further ones with this reason "
+                "are counted, not logged: the total is in the run summary)",
+                self.name, s.timestamp, s.origin or "?", why)
+        return True
 
     # --- producer side ------------------------------------------------------------
     def push(self, s: Sample) -> bool:
         """Store ``s``; return True when the owner must be triggered now.
 
         The real-time executor calls it holding the owner's lock (the re-entrant lock of
-        ``_cond``); the ``block`` policy waits on ``_cond``, which releases that lock.
+        ``_cond``); the ``block`` policy waits on ``_cond``, which releases that lock. An
+        invalid sample (see :meth:`invalid`) is dropped and counted; it never triggers.
         """
+        if self.validate and self.invalid(s):
+            return False
         st = self.stats
         st.received += 1
         self._last = s

@@ -14,11 +14,12 @@ class Sample:
     uses the same unit); ``seq`` counts the samples of the output that emitted it;
     ``origin`` names that output as ``component.port``. Arrays inside ``data`` are
     read-only once emitted, so a sample is shared, never copied, by every input it
-    reaches. ``nbytes`` caches the size of ``data`` once an input bounded in bytes has
-    measured it (-1 until then; see :func:`impala_flow.ports.sample_nbytes`).
+    reaches, and checked once for validity (:mod:`impala_flow.ports`). ``nbytes`` caches the
+    size of ``data`` once an input bounded in bytes has measured it (-1 until then; see
+    :func:`impala_flow.ports.sample_nbytes`).
     """
 
-    __slots__ = ("timestamp", "data", "seq", "origin", "nbytes")
+    __slots__ = ("timestamp", "data", "seq", "origin", "nbytes", "invalid")
 
     def __init__(self, timestamp: int, data: Any, seq: int = 0, origin: str = "") -> None:
         self.timestamp = timestamp
@@ -26,6 +27,9 @@ class Sample:
         self.seq = seq
         self.origin = origin
         self.nbytes = -1
+        # why ``data`` is invalid ('' when valid, None before any input checked it): the first
+        # input that checks a sample keeps the verdict, so a fanned-out sample is checked once
+        self.invalid: str | None = None
 
     @property
     def t_ns(self) -> int:

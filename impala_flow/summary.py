@@ -1,5 +1,10 @@
 """RunSummary: what a run did, what it dropped, what failed. Nothing is lost silently.
 
+Invalid samples (a message whose ``invalid_reason()`` is not None, dropped where it enters an
+input: :mod:`impala_flow.ports`) are counted in ``inputs[...]["invalid"]`` and by reason in
+``inputs[...]["invalid_reasons"]``; :meth:`RunSummary.format` prints one ``INVALID at`` line
+per input with the count of each reason, and they count in :attr:`RunSummary.total_lost`.
+
 Errors: ``error`` is the first failure of the run (the one raised to the caller);
 ``errors`` lists the later ones (a ``stop()`` or ``summary()`` that raised too), each a
 line naming its component, so a secondary failure never hides the first.
@@ -72,14 +77,21 @@ class RunSummary:
         return self.mission_s / self.wall_s if self.wall_s > 0 else float("inf")
 
     def drops(self) -> dict[str, dict[str, int]]:
-        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m, "unconsumed": k}}
-        (``dropped_maxbytes``: dropped because the FIFO held its ``maxbytes``)."""
+        """Inputs that lost samples: {"comp.port": {"dropped": n, "unmatched": m, "unconsumed": k,
+        "invalid": i}} (only the non-zero counts; ``dropped_maxbytes``: dropped because the FIFO held
+        its ``maxbytes``)."""
         out = {}
         for k, st in self.inputs.items():
-            lost = {n: st[n] for n in ("dropped", "dropped_maxbytes", "unmatched", "unconsumed") if st.get(n)}
+            lost = {n: st[n] for n in ("dropped", "dropped_maxbytes", "unmatched", "unconsumed", "invalid")
+                    if st.get(n)}
             if lost:
                 out[k] = lost
         return out
+
+    def invalid(self) -> dict[str, dict[str, int]]:
+        """Samples dropped on arrival as invalid, by input and reason: {"comp.port": {reason: n}}."""
+        return {k: dict(st.get("invalid_reasons") or {"invalid": st["invalid"]})
+                for k, st in self.inputs.items() if st.get("invalid")}
 
     def backpressure(self) -> dict[str, dict[str, float]]:
         """Inputs whose producers waited for room (``block`` policy, real time):
@@ -151,7 +163,13 @@ class RunSummary:
             lines.append(f"  {name}: " + ", ".join(bits))
         drops = self.drops()
         for k, v in drops.items():
-            lines.append(f"  LOST at {k}: " + ", ".join(f"{n} {_KINDS.get(kind, kind)}" for kind, n in v.items()))
+            lost = {kind: n for kind, n in v.items() if kind != "invalid"}
+            if lost:
+                lines.append(f"  LOST at {k}: "
+                             + ", ".join(f"{n} {_KINDS.get(kind, kind)}" for kind, n in lost.items()))
+        for k, reasons in self.invalid().items():
+            lines.append(f"  INVALID at {k}: {sum(reasons.values())} samples dropped on arrival ("
+                         + ", ".join(f"{why}: {n}" for why, n in reasons.items()) + ")")
         unread = self.source_losses()
         for k, v in unread.items():
             n = "an unknown number of" if v["unreadable"] is None else v["unreadable"]

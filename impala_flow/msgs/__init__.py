@@ -3,7 +3,7 @@
 See :mod:`impala_flow.msgs._base` for the contract a message type follows.
 """
 
-from ._base import freeze, is_message, message, schema_name, schema_version
+from ._base import freeze, invalid_fields, is_message, message, schema_name, schema_version
 from .geometry import (
     HEADING_UNKNOWN_VAR_RAD2,
     Grid,
@@ -41,7 +41,8 @@ BUILTIN_TYPES: tuple[type, ...] = (
 LEGACY_TYPES: tuple[tuple[type, object], ...] = ((RadarBeamV1, upgrade_radar_beam_v1),)
 
 __all__ = [
-    "message", "is_message", "schema_name", "schema_version", "freeze", "wrap_angle", "HEADING_UNKNOWN_VAR_RAD2",
+    "message", "is_message", "schema_name", "schema_version", "freeze", "invalid_fields", "wrap_angle",
+    "HEADING_UNKNOWN_VAR_RAD2",
     "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D",
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
     "TrackExistence", "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES", "LEGACY_TYPES", "CHIRP_UP", "CHIRP_DOWN",

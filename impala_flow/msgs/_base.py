@@ -11,6 +11,7 @@ type, or ``X | None`` of those. That contract is what lets one generic codec
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -18,23 +19,62 @@ import numpy as np
 
 T = TypeVar("T")
 
-__all__ = ["message", "is_message", "schema_name", "schema_version", "freeze"]
+__all__ = ["message", "is_message", "schema_name", "schema_version", "freeze", "invalid_fields"]
 
 
-def message(name: str, version: int = 1) -> Callable[[type[T]], type[T]]:
+def message(name: str, version: int = 1, *, nan_ok: tuple[str, ...] = ()) -> Callable[[type[T]], type[T]]:
     """Class decorator: make ``cls`` a dataclass message named ``name`` (e.g. ``impala.Pose2D``).
 
     ``version`` is bumped whenever a field is added, removed or changes meaning; a reader
-    refuses a recording whose schema version it does not know.
+    refuses a recording whose schema version it does not know. ``nan_ok``: fields where NaN
+    means "unknown" (see :func:`invalid_fields`).
     """
 
     def wrap(cls: type[T]) -> type[T]:
         if not dataclasses.is_dataclass(cls):
             cls = dataclasses.dataclass(eq=False)(cls)  # eq=False: arrays have no bool ==
         cls.__impala_schema__ = (name, int(version))  # type: ignore[attr-defined]
+        cls.__impala_fields__ = tuple(  # type: ignore[attr-defined]
+            (f.name, f.name in nan_ok) for f in dataclasses.fields(cls))
+        if "invalid_reason" not in cls.__dict__:
+            cls.invalid_reason = invalid_fields  # type: ignore[attr-defined]
         return cls
 
     return wrap
+
+
+def _array_invalid(a: np.ndarray, nan_ok: bool) -> bool:
+    if a.dtype.kind not in "fc" or a.size == 0:
+        return False
+    if nan_ok:
+        return bool(np.isinf(a).any())
+    # np.isfinite: one vectorised pass, never a floating-point warning (a sum would warn on
+    # inf - inf or on overflow, and np.errstate costs more than the pass itself)
+    return not np.isfinite(a).all()
+
+
+def invalid_fields(obj: Any) -> str | None:
+    """Why ``obj`` (a message) is not a valid sample, or None: the first field holding a
+    non-finite float (NaN allowed in the type's ``nan_ok`` fields), a float array with one,
+    or a nested message that is invalid (``'config: ...'``). The default ``invalid_reason``."""
+    for name, nan_ok in type(obj).__impala_fields__:
+        v = getattr(obj, name)
+        t = type(v)
+        if t is float:
+            if v * 0.0 != 0.0 and not (nan_ok and v != v):  # v * 0 is NaN for NaN and +-inf only
+                return f"non-finite {name}"
+        elif t is int or t is str or t is bool or v is None:
+            continue
+        elif t is np.ndarray:
+            if _array_invalid(v, nan_ok):
+                return f"non-finite {name}"
+        elif "__impala_fields__" in t.__dict__:
+            why = v.invalid_reason()
+            if why is not None:
+                return f"{name}: {why}"
+        elif isinstance(v, (np.floating, float)) and not math.isfinite(v) and not (nan_ok and v != v):
+            return f"non-finite {name}"
+    return None
 
 
 def is_message(obj_or_type: Any) -> bool:

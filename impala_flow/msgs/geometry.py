@@ -7,7 +7,7 @@ from dataclasses import field
 
 import numpy as np
 
-from ._base import message
+from ._base import invalid_fields, message
 
 __all__ = ["HEADING_UNKNOWN_VAR_RAD2", "Scalar", "Pose2D",
            "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D", "wrap_angle"]
@@ -58,6 +58,13 @@ class Pose2D:
 
     def as_array(self) -> np.ndarray:
         return np.array([self.x_m, self.y_m, self.theta_rad])
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a covariance neither empty nor 3 x 3."""
+        why = invalid_fields(self)
+        if why is None and np.size(self.cov_xyt) and np.shape(self.cov_xyt) != (3, 3):
+            return "cov_xyt neither empty nor 3 x 3"
+        return why
 
     @property
     def heading_known(self) -> bool:
@@ -116,6 +123,16 @@ class Grid:
     origin_y_m: float
     frame: str = "map"
     pose: Pose2D | None = None
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers (see :func:`~impala_flow.msgs.invalid_fields`), ``cell_m <= 0`` or
+        ``data`` not 2-D."""
+        why = invalid_fields(self)
+        if why is None and not self.cell_m > 0:
+            return "cell_m <= 0"
+        if why is None and np.ndim(self.data) != 2:
+            return "data not 2-D"
+        return why
 
 
 @message("impala.Points2D", version=1)

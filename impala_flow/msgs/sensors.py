@@ -6,7 +6,7 @@ from dataclasses import field
 
 import numpy as np
 
-from ._base import message
+from ._base import invalid_fields, message
 
 __all__ = [
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
@@ -47,6 +47,26 @@ class RadarConfig:
     height_m: float = 1.3
     window: str = "hann"  # weighting before the FFT: "hann" (peaks ~4 bins wide) or "rect"
     range_offset_m: float = 0.0  # range of bin 0 (bin k: range_offset_m + k range_per_bin_m)
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a quantity every range and time formula divides by that is not > 0.
+
+        Checked on every beam (each carries its config): the common case is one expression
+        (x * 0 is 0 for a finite x, NaN for NaN and +-inf); the field-by-field walk only names
+        what is wrong."""
+        finite = (self.f0_hz * 0.0 + self.bandwidth_hz * 0.0 + self.modulation_hz * 0.0 + self.bin_hz * 0.0
+                  + self.beam_width_rad * 0.0 + self.rotation_hz * 0.0 + self.range_min_m * 0.0
+                  + self.range_max_m * 0.0 + self.height_m * 0.0 + self.range_offset_m * 0.0) == 0.0
+        why = None if finite else invalid_fields(self)
+        if why is not None:
+            return why
+        if (self.bandwidth_hz > 0 and self.modulation_hz > 0 and self.bin_hz > 0 and self.rotation_hz > 0
+                and self.n_bins > 0 and self.beams_per_turn > 0 and 0.0 <= self.range_min_m < self.range_max_m):
+            return None
+        for name in ("bandwidth_hz", "modulation_hz", "bin_hz", "rotation_hz", "n_bins", "beams_per_turn"):
+            if not getattr(self, name) > 0:
+                return f"{name} <= 0"
+        return "range_min_m, range_max_m not 0 <= min < max"
 
     @property
     def range_per_bin_m(self) -> float:
@@ -102,6 +122,16 @@ class RadarBeam:
     config: RadarConfig
     chirp: int = 0
 
+    def invalid_reason(self) -> str | None:
+        """:func:`~impala_flow.msgs.invalid_fields`, with a fast path for the valid beam (the
+        common case, checked on every beam entering an input)."""
+        up, down = self.up, self.down
+        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or np.isfinite(up).all())
+                and (down.size == 0 or down.dtype.kind not in "fc" or np.isfinite(down).all())):
+            why = self.config.invalid_reason()
+            return None if why is None else f"config: {why}"
+        return invalid_fields(self)
+
 
 @message("impala.RadarBeam", version=1)
 class RadarBeamV1:
@@ -136,13 +166,22 @@ class RadarScan:
     down: np.ndarray
     config: RadarConfig
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or a power image whose rows are not the beams."""
+        why = invalid_fields(self)
+        if why is None and not (np.ndim(self.power) == 2
+                                and len(self.t_ns) == len(self.azimuth_rad) == len(self.power)):
+            return "t_ns, azimuth_rad and power rows differ in length"
+        return why
 
-@message("impala.RadarDetections", version=1)
+
+@message("impala.RadarDetections", version=1, nan_ok=("radial_speed_mps", "score"))
 class RadarDetections:
     """Targets detected in beams: one entry per detection, with its beam's time and azimuth.
 
     ``radial_speed_mps`` follows the seed's sign (negative when the target approaches);
     ``score`` is the pairing confidence in [0, 1]; ``beam`` the beam index in its turn.
+    ``radial_speed_mps`` and ``score`` are NaN when not measured (a power-only radar).
     """
 
     turn: int
@@ -154,10 +193,20 @@ class RadarDetections:
     amplitude: np.ndarray
     score: np.ndarray
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers (NaN allowed in ``radial_speed_mps`` and ``score``), or columns of
+        different lengths."""
+        why = invalid_fields(self)
+        n = len(self.t_ns)
+        if why is None and not (len(self.beam) == len(self.azimuth_rad) == len(self.range_m) == n
+                                and len(self.radial_speed_mps) == len(self.amplitude) == len(self.score) == n):
+            return "detection columns differ in length"
+        return why
 
-@message("impala.Speed", version=1)
+
+@message("impala.Speed", version=1, nan_ok=("std_mps",))
 class Speed:
-    """Forward speed (odometer, or estimated: then ``std_mps`` is its standard deviation)."""
+    """Forward speed (odometer, or estimated: then ``std_mps`` is its standard deviation; NaN: unknown)."""
 
     speed_mps: float
     std_mps: float = float("nan")
@@ -180,6 +229,16 @@ class ObjectStates:
     cov: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     frame: str = "map"
 
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, or rows that do not match: ``ids`` (n), ``xy_m`` and ``v_xy_mps``
+        (n, 2), ``cov`` (n, 4, 4) or empty."""
+        why = invalid_fields(self)
+        n = len(self.ids)
+        if why is None and not (np.shape(self.xy_m) == np.shape(self.v_xy_mps) == (n, 2)
+                                and (np.size(self.cov) == 0 or np.shape(self.cov) == (n, 4, 4))):
+            return "ids, xy_m, v_xy_mps, cov rows do not match"
+        return why
+
 
 @message("impala.TrackExistence", version=1)
 class TrackExistence:
@@ -192,3 +251,13 @@ class TrackExistence:
     probability: np.ndarray
     confirmed: np.ndarray
     frame: str = "map"
+
+    def invalid_reason(self) -> str | None:
+        """Non-finite numbers, a probability outside [0, 1], or rows that do not match."""
+        why = invalid_fields(self)
+        n = len(self.ids)
+        if why is None and not (np.shape(self.xy_m) == (n, 2) and len(self.probability) == len(self.confirmed) == n):
+            return "ids, xy_m, probability, confirmed rows do not match"
+        if why is None and n and not (np.min(self.probability) >= 0.0 and np.max(self.probability) <= 1.0):
+            return "probability outside [0, 1]"
+        return why

@@ -153,4 +153,7 @@ class TrajectoryEvaluator(Component):
                 "pair_trans_err_mean_m", "pair_rot_err_mean_deg", "gap_total_s", "speed_err_mean_mps",
                 "speed_err_std_mps", "yaw_rate_err_mean_dps", "yaw_rate_err_std_dps", "final_error_x_m",
                 "final_error_y_m", "final_rot_err_rad")
-        return {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}
+        out = {k: round(self.figures[k], 3) for k in keys if isinstance(self.figures.get(k), float)}
+        if self.figures.get("error"):  # nothing scored: the summary says why (not only the log)
+            out["not_scored"] = self.figures["error"]
+        return out

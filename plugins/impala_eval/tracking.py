@@ -5,6 +5,14 @@
                     longest track's as the seed reports it), false tracks and their lifetime in turns
     tracks.png      every track over the map with the truth dashed, the radar a cross (Fig. 19)
     existence.png   existence probability of every launched track over time (Fig. 18)
+
+Frames: tracks, truth, existence and pose are scored only in one frame, the truth's (the
+``frame`` of its first sample). A sample in another frame (tracks in ``radar`` because the
+tracker had no pose, truth in ``map``) is never compared: it is left out, counted
+(``unscored_turns`` for tracks, ``unscored_truth``, ``unscored_existence``,
+``unscored_pose``) in the summary and metrics.json (``frame_errors``), and the first of each
+input is one ERROR line naming the input, both frames and the sample's time. With every
+track turn left out, the CLEAR-MOT figures are absent, never computed on mixed frames.
 """
 
 from __future__ import annotations
@@ -24,6 +32,9 @@ __all__ = ["TrackingEvaluator", "write_tracking_report"]
 
 _SUMMARY_KEYS = ("mota", "motp_m", "idf1", "id_switches", "fragmentations", "pos_err_m", "speed_err_mps",
                  "false_tracks", "false_track_max_turns")
+#: input -> the counter of its samples left out (in a frame other than the truth's)
+_UNSCORED = {"tracks": "unscored_turns", "truth": "unscored_truth", "existence": "unscored_existence",
+             "pose": "unscored_pose"}
 
 
 class TrackingEvaluator(Component):
@@ -48,33 +59,71 @@ class TrackingEvaluator(Component):
     def start(self) -> None:
         self.frames = TrackingFrames()
         self.figures: dict[str, Any] = {}
+        self._truth_frame: str | None = None
+        self._held: list[tuple[str, int, Any]] = []  # (input, t, data) received before the first truth
+        self.unscored: dict[str, int] = {}  # input -> samples left out (another frame than the truth's)
+        self.frame_errors: dict[str, str] = {}  # input -> the line logged for its first
 
     def process(self, t: int) -> None:
         s = self.inputs[self.trigger].take_sample()
-        f, d = self.frames, s.data
-        if self.trigger == "tracks":
-            f.t_ns.append(s.timestamp)
+        if self._truth_frame is None and self.trigger != "truth":
+            self._held.append((self.trigger, s.timestamp, s.data))  # its frame is judged at the first truth
+            return
+        if self.trigger == "truth" and self._truth_frame is None:
+            self._truth_frame = s.data.frame
+            self._store("truth", s.timestamp, s.data)
+            held, self._held = self._held, []
+            for port, t_ns, data in held:
+                self._store(port, t_ns, data)
+            return
+        self._store(self.trigger, s.timestamp, s.data)
+
+    def _store(self, port: str, t_ns: int, d: Any) -> None:
+        f = self.frames
+        if d.frame != self._truth_frame:
+            self.unscored[port] = self.unscored.get(port, 0) + 1
+            if port not in self.frame_errors:
+                self.frame_errors[port] = (
+                    f"input '{port}': sample t={t_ns} ns is in frame '{d.frame}', the truth in "
+                    f"'{self._truth_frame}': not scored (no transform between them here; give the tracker "
+                    f"the radar pose in '{self._truth_frame}'); further ones counted as unscored")
+                self.log.error("%s", self.frame_errors[port])
+            return
+        if port == "tracks":
+            f.t_ns.append(t_ns)
             f.track_ids.append(np.asarray(d.ids, np.int64))
             f.track_xy.append(np.asarray(d.xy_m, float).reshape(-1, 2))
             f.track_v.append(np.asarray(d.v_xy_mps, float).reshape(-1, 2))
-        elif self.trigger == "truth":
-            f.truth_t_ns.append(s.timestamp)
+        elif port == "truth":
+            f.truth_t_ns.append(t_ns)
             f.truth_ids.append(np.asarray(d.ids, np.int64))
             f.truth_xy.append(np.asarray(d.xy_m, float).reshape(-1, 2))
             f.truth_v.append(np.asarray(d.v_xy_mps, float).reshape(-1, 2))
-        elif self.trigger == "existence":
-            f.exist_t_ns.append(s.timestamp)
+        elif port == "existence":
+            f.exist_t_ns.append(t_ns)
             f.exist_ids.append(np.asarray(d.ids, np.int64))
             f.exist_xy.append(np.asarray(d.xy_m, float).reshape(-1, 2))
             f.exist_p.append(np.asarray(d.probability, float))
             f.exist_conf.append(np.asarray(d.confirmed, bool))
         else:
-            f.radar_t_ns.append(s.timestamp)
+            f.radar_t_ns.append(t_ns)
             f.radar_xy.append(np.array([d.x_m, d.y_m]))
 
     def evaluate(self) -> dict[str, Any]:
         """Compute the metrics from what was received (also called by stop())."""
+        if self._held:  # no truth ever came: nothing can be scored
+            for port, _, _ in self._held:
+                self.unscored[port] = self.unscored.get(port, 0) + 1
+            port, t_ns, _ = self._held[0]
+            self.frame_errors.setdefault(port, f"input '{port}': no truth received, nothing scored "
+                                               f"(first sample t={t_ns} ns)")
+            self.log.error("%s", self.frame_errors[port])
+            self._held = []
         self.figures = tracking_metrics(self.frames, self.match_m, (self.range_min_m, self.range_max_m), self.turn_s)
+        for port, n in self.unscored.items():
+            self.figures[_UNSCORED[port]] = n
+        if self.frame_errors:
+            self.figures["frame_errors"] = dict(self.frame_errors)
         return self.figures
 
     def stop(self) -> None:
@@ -85,7 +134,8 @@ class TrackingEvaluator(Component):
             write_tracking_report(Path(self.report), figures, self.frames, self.title)
 
     def summary(self) -> dict:
-        return {k: self.figures[k] for k in _SUMMARY_KEYS if isinstance(self.figures.get(k), (int, float))}
+        keys = (*_SUMMARY_KEYS, *_UNSCORED.values())
+        return {k: self.figures[k] for k in keys if isinstance(self.figures.get(k), (int, float))}
 
 
 def write_tracking_report(folder: Path, figures: dict[str, Any], frames: TrackingFrames, title: str) -> None:

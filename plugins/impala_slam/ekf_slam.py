@@ -33,6 +33,11 @@ every ``map_period_s`` and at the end (the keyframes' dB images placed at their 
 poses: the global map of the seed's Figs. 5 and 7), ``constraints`` (every odometry
 increment, registration and loop closure as ``RelativePose2D``, for ``slam.PoseGraph``).
 The map frame is the first pose (0, 0, 0), as in the seed's comparison.
+
+A turn it can do nothing with (an image with no cell above the threshold: silent or
+all-zero beams) still gives a pose, carried by the odometry (its registrations fail and
+are counted); the summary counts it as ``empty_images``, and a map whose keyframes are all
+empty is not emitted (``empty_maps``).
 """
 
 from __future__ import annotations
@@ -134,7 +139,8 @@ class EkfSlam(FmtComponent):
         self._recent: list[tuple[int, FmtImage]] = []  # (pose index, image) of the last register_last images
         self._prev_odom: Pose | None = None
         self._pending: deque[tuple[int, Grid, RelativePose2D | None]] = deque()  # images waiting for odometry
-        self.counts = dict(turns=0, registrations=0, registration_failures=0, registrations_refused=0,
+        self.counts = dict(turns=0, empty_images=0, empty_maps=0, registrations=0, registration_failures=0,
+                           registrations_refused=0,
                            loop_candidates_tried=0, loop_closures=0, loop_rejected_gate=0, loop_rejected_weak=0,
                            no_odometry=0, registrations_unmatched=0)
         self.fmt_s = 0.0
@@ -148,8 +154,7 @@ class EkfSlam(FmtComponent):
                 self._emit_trajectory(t)
             return
         if self.trigger == "map_timer":
-            if self.keyframes:
-                self.map.emit(t, self.global_map())
+            self._emit_map(t)
             return
         grid: Grid = self.inputs["image"].take()
         reg: RelativePose2D | None = self.inputs["registration"].take() if "registration" in self.inputs else None
@@ -178,6 +183,8 @@ class EkfSlam(FmtComponent):
         cur = prepare(grid, self.params_fmt, self.linear_power)
         self.fmt_s += time.perf_counter() - t0
         self.counts["turns"] += 1
+        if not np.any(cur.image > 0):  # nothing above the threshold: its registrations will fail
+            self.counts["empty_images"] += 1
         if self.ekf is None:
             self.ekf = PoseEkf()
             self._after_step(t, cur, grid, t_step)
@@ -326,8 +333,19 @@ class EkfSlam(FmtComponent):
         assert ekf is not None
         self.trajectory.emit(t, Trajectory2D(np.array(self.t_ns, np.int64), ekf.x.copy(), "map"))
 
-    def global_map(self) -> Grid:
-        """The keyframes' images placed at their current estimates (mean where they overlap)."""
+    def _emit_map(self, t: int) -> None:
+        """The global map, unless no keyframe holds a cell above the threshold (counted)."""
+        if not self.keyframes:
+            return
+        m = self.global_map()
+        if m is None:
+            self.counts["empty_maps"] += 1
+        else:
+            self.map.emit(t, m)
+
+    def global_map(self) -> Grid | None:
+        """The keyframes' images placed at their current estimates (mean where they overlap);
+        None when every keyframe is empty (all-zero, or no power over the threshold)."""
         ekf = self.ekf
         assert ekf is not None
         p = self.params_fmt
@@ -342,15 +360,14 @@ class EkfSlam(FmtComponent):
             w = warp_grid_to_map(g, pose, ix0, iy0, n, n, tm.cell_m, border=0.0)
             seen = (w > 0).astype(np.float32)
             tm.add(ix0, iy0, w, seen)
-        return tm.to_grid("map")
+        return None if tm.empty else tm.to_grid("map")
 
     def flush(self, t: int) -> None:
         self._drain(final=True)
         if self.ekf is None:
             return
         self._emit_trajectory(t)
-        if self.keyframes:
-            self.map.emit(t, self.global_map())
+        self._emit_map(t)
 
     def summary(self) -> dict:
         if getattr(self, "ekf", None) is None:

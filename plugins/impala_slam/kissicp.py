@@ -197,8 +197,8 @@ class KissIcp(Component):
         self._boot = []
 
     def summary(self) -> dict:
-        if not getattr(self, "turns", 0):
-            return {}
+        if not getattr(self, "turns", 0):  # nothing registered: say why (turns with too few points)
+            return {"turns": 0, "skipped_turns": self.skipped_turns} if getattr(self, "skipped_turns", 0) else {}
         return {"turns": self.turns, "skipped_turns": self.skipped_turns, "map_updates": self.map_updates or self.turns,
                 "points_per_turn": round(self.points / self.turns, 1),
                 "ms_per_turn": round(1e3 * self.seconds / self.turns, 2)}

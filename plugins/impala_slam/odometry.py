@@ -340,7 +340,9 @@ class DistortionOdometry(Component):
     covariance grows) and every ``map_period_s`` the map of the echoes' power placed by the
     odometry's own poses (Fig. 16). Outputs are stamped at the first beam of the newer of the
     two turns compared, on the turn clock (earlier than the turn's stamp when that came late).
-    Never a NaN: before its first measurement it emits nothing.
+    Never a NaN: before its first measurement it emits nothing. A turn short of beams (beams
+    lost or invalid, the recording's ends) is used as it is when it holds ``min_turn_fraction``
+    of them (counted as ``partial_turns``), else dropped (``dropped_turns``).
     """
 
     beams = Input(RadarBeam, doc="radar beams, each stamped at its own time")
@@ -369,6 +371,9 @@ class DistortionOdometry(Component):
     map_range_m = Param(float, default=60.0, gt=0, doc="beams placed in the map up to this range")
     map_period_s = Param(float, default=30.0, gt=0, doc="period of the map output (s)")
     frame = Param(str, default="odom", doc="frame of the poses and of the map")
+    min_turn_fraction = Param(float, default=0.5, ge=0, le=1,
+                              doc="a turn with fewer beams (of beams_per_turn) is dropped (counted); one with "
+                                  "more but not all is used as it is (counted as partial)")
 
     def start(self) -> None:
         cfg = DistortionConfig(
@@ -384,7 +389,8 @@ class DistortionOdometry(Component):
         self._map = TileMap(self.map_cell_m) if self.map_cell_m > 0 else None
         self._last_turn: tuple | None = None  # (t_s, azimuths, power dB, config) of the previous turn
         self._last_result: TurnResult | None = None
-        self.partial_turns = 0
+        self.partial_turns = 0  # turns short of beams, used
+        self.dropped_turns = 0  # turns with fewer than min_turn_fraction of their beams, not used
         self.map_s = 0.0
 
     def process(self, t: int) -> None:
@@ -410,9 +416,11 @@ class DistortionOdometry(Component):
         if not beams:
             return
         config = beams[0][1].config
-        if len(beams) < 0.9 * config.beams_per_turn:
-            self.partial_turns += 1  # a turn cut by the recording's start or end, or by losses
-            return
+        if len(beams) < config.beams_per_turn:  # cut by the recording's start or end, or beams lost
+            if len(beams) < max(2.0, self.min_turn_fraction * config.beams_per_turn):
+                self.dropped_turns += 1  # too few beams to compare with the previous turn
+                return
+            self.partial_turns += 1  # its beams carry their own times and azimuths: used as they are
         if self._t0 is None:
             self._t0 = beams[0][0]
         t_ns = np.array([b[0] for b in beams], np.int64)
@@ -474,8 +482,11 @@ class DistortionOdometry(Component):
 
     def summary(self) -> dict:
         core = getattr(self, "core", None)
-        if core is None or not core.turns:
+        if core is None:
             return {}
+        if not core.turns:  # no turn reached the estimator: say why (turns cut short)
+            return ({"turns": 0, "partial_turns": self.partial_turns, "dropped_turns": self.dropped_turns}
+                    if self.partial_turns or self.dropped_turns else {})
         return {
             "turns": core.turns,
             "degraded_turns": core.degraded,
@@ -485,6 +496,7 @@ class DistortionOdometry(Component):
             "late_stamps": core.late_stamps,
             "missing_turns": core.missing_turns,
             "partial_turns": self.partial_turns,
+            "dropped_turns": self.dropped_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
         }

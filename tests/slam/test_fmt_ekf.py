@@ -301,12 +301,15 @@ def test_fmt_ekf_is_bit_identical_at_any_speed(tmp_path):
 
 def test_pose_graph_refuses_bad_covariance():
     c_ok = RelativePose2D(0, 1, 1.0, 0.0, 0.0, np.eye(3) * 1e-2, "odometry")
-    c_bad = RelativePose2D(1, 2, 1.0, 0.0, 0.0, np.full((3, 3), np.nan), "odometry")
+    c_nan = RelativePose2D(1, 2, 1.0, 0.0, 0.0, np.full((3, 3), np.nan), "odometry")
+    c_bad = RelativePose2D(1, 2, 1.0, 0.0, 0.0, -np.eye(3), "odometry")  # finite, not positive definite
     pg = PoseGraph("pg", solver="isam2")
     sink = CollectingSink("sink")
-    run_components(ScriptedSource("src", [(1, "out", c_ok), (2, "out", c_bad)]), pg, sink,
-                   connections=["src.out -> pg.constraints", "pg.trajectory -> sink.x"])
+    summary = run_components(ScriptedSource("src", [(1, "out", c_ok), (2, "out", c_nan), (2, "out", c_bad)]), pg,
+                             sink, connections=["src.out -> pg.constraints", "pg.trajectory -> sink.x"])
     s = pg.summary()
+    # the NaN covariance never reaches the graph: dropped where it enters, counted (issue 24)
+    assert summary.invalid() == {"pg.constraints": {"non-finite cov_xyt": 1}}
     assert s["nodes"] == 2 and s["ignored_bad_covariance"] == 1
     assert np.allclose(sink.values()[-1].xyt[-1], (1.0, 0.0, 0.0))
 

@@ -34,7 +34,8 @@ class FuzzyPairer(Component):
     Beams are buffered and processed one whole turn at a time (vectorised over its
     beams): one :class:`RadarDetections` per turn, stamped with the time of the turn's
     last beam, every detection keeping its own beam time and azimuth. A turn is complete
-    at its last beam index, or when a beam of another turn arrives (partial turn). The
+    at its last beam index, or when a beam of another turn arrives; one with fewer beams than
+    ``beams_per_turn`` (cut by the recording, or beams lost) is counted in ``partial_turns``. The
     static-target Doppler offset the position criterion is centred on comes from the
     ``speed`` input (odometer) when it holds a sample, otherwise from the spectra
     (``doppler_prior="xcorr"``) or zero (``"none"``). A power-only radar (no down
@@ -72,13 +73,14 @@ class FuzzyPairer(Component):
         """The beams are exhausted: the partial last turn's detections are emitted too."""
         buf = self._turn.take()
         if buf:
-            self.partial_turns += 1
             self._flush(buf)
 
     def _flush(self, buf: list[tuple[int, RadarBeam]]) -> None:
         t_ns = np.array([t for t, _ in buf], np.int64)
         first = buf[0][1]
         config = first.config
+        if len(buf) < config.beams_per_turn:  # cut by the recording's start or end, or beams lost
+            self.partial_turns += 1
         azimuth = np.array([b.azimuth_rad for _, b in buf])
         up = np.stack([b.up for _, b in buf])
         if not config.doppler or first.down.size == 0:
