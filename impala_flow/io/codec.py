@@ -400,9 +400,15 @@ class UpgradingCodec(MessageCodec):
     (``old_cls``, a ``@message`` dataclass of that version) and returns ``upgrade(old)``, an
     instance of the current type. Read-only: values are always written at the current version."""
 
-    def __init__(self, old_cls: type, upgrade: Callable[[Any], Any]) -> None:
+    def __init__(self, old_cls: type, upgrade: Callable[[Any], Any], new_cls: type | None = None) -> None:
         super().__init__(old_cls)
         self._upgrade = upgrade
+        if new_cls is None:  # the upgrade's return annotation names the current type
+            new_cls = typing.get_type_hints(upgrade).get("return")
+        if not isinstance(new_cls, type):
+            raise TypeError(f"upgrade of {self.schema_name} v{self.schema_version}: give new_cls, the type it returns")
+        #: what a reader decodes on such a channel (a replayer declares its output with it)
+        self.value_type = new_cls
 
     def decode(self, data: bytes | memoryview) -> Any:
         return self._upgrade(super().decode(data))

@@ -223,7 +223,7 @@ class MissionReader:
         c = self._codec(self._channel_id(topic))
         if isinstance(c, UnknownSchemaError):
             raise c
-        return c.py_type
+        return getattr(c, "value_type", c.py_type)  # an older version's codec decodes to the current type
 
     def _channel_id(self, topic: str) -> int:
         for cid, ch in self._map.channels.items():

@@ -46,3 +46,23 @@ def test_chirp_round_trips_and_version_1_is_read_only(tmp_path: Path) -> None:
     assert isinstance(legacy, UpgradingCodec)
     with pytest.raises(CodecError, match="read-only"):
         legacy.encode(msgs.RadarBeamV1(0.0, 0, 0, np.ones(2, np.float32), np.zeros(0, np.float32), CFG))
+
+
+def test_a_version_1_recording_replays_through_a_graph_taking_todays_beams(tmp_path: Path) -> None:
+    """The replayer declares what the reader decodes (today's RadarBeam), not the recorded version: a
+    mission imported before ``chirp`` still feeds graphs/odometry_navtech.yaml."""
+    from impala_flow.cli import main
+
+    old = CodecRegistry()
+    old.add_type(msgs.RadarBeamV1, plugin="impala_flow")
+    old.add_type(msgs.Pose2D, plugin="impala_flow")
+    path = tmp_path / "v1.mcap"
+    with MissionWriter(path, codecs=old) as w:
+        w.add_topic("radar/beams", msgs.RadarBeamV1)
+        w.add_topic("truth/pose", msgs.Pose2D)
+        for i in range(3):
+            w.write("radar/beams", 1000 + i, msgs.RadarBeamV1(0.1 * i, 7, i, np.ones(4, np.float32),
+                                                              np.zeros(0, np.float32), CFG))
+        w.write("truth/pose", 1000, msgs.Pose2D(0.0, 0.0, 0.0))
+    graph = Path(__file__).resolve().parents[2] / "graphs" / "odometry_navtech.yaml"
+    assert main(["validate", str(graph), "--var", f"mission={path}", "--var", f"out={tmp_path / 'o'}"]) == 0
