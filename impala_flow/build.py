@@ -166,6 +166,11 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
                                     "(is the io plugin installed and not blocked?)"))
         else:
             resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
+            # its parameters (chunk_size, flush_period_s, ...) are checked now, not when it is built
+            given = {k: v for k, v in spec.record.items() if k != "streams"}
+            _, bad = registry.components[RECORDER_TYPE].validate_params(given)
+            for k, msg in bad.items():
+                problems.append(Problem(spec.record_loc, f"record: '{k}': {msg}"))
     problems += check_paths(spec, registry)
     return problems
 

@@ -334,7 +334,8 @@ class OfflineExecutor:
                         b[3] = b[3] + 1 if got == b[2] else 0
                         b[2] = got
                         due = t + p
-                        if b[3] >= IDLE_TIMER_FIRINGS:  # idle for long: skip to the next pending event
+                        if b[3] >= IDLE_TIMER_FIRINGS and not (heap and heap[0][0] <= due and heap[0][3] != _TIMER):
+                            # idle for long, nothing else due before its next firing: skip to the next pending event
                             pending = [e[0] for e in heap if e[3] != _TIMER]
                             if pending and min(pending) > due:
                                 nxt = -(-min(pending) // p) * p

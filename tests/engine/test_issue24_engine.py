@@ -296,3 +296,14 @@ def test_a_report_folder_that_holds_an_input_is_refused_and_one_beside_it_is_not
     g = write(tmp_path, "g.yaml", text.replace("REPORT", "data/report"))  # beside the input, in its folder: fine
     session.run(session.load(g))
     assert (tmp_path / "data" / "out.txt").read_text() == "done\n"
+
+
+def test_record_parameters_are_checked_at_validation_not_at_build(tmp_path, session):
+    g = write(tmp_path, "g.yaml", textwrap.dedent(CHAIN) + "record: {path: r.mcap, chunk_size: 1099511627776, "
+              "flush_period_s: .inf}\n")
+    where = loc_of(g, "path: r.mcap")
+    where = where.rsplit(":", 1)[0] + ":9"  # the record mapping itself
+    assert problems_of(session, g) == [
+        f"{where}: record: 'chunk_size': 1099511627776 must be <= 268435456",
+        f"{where}: record: 'flush_period_s': inf is not allowed: a finite number is expected"]
+    assert not (tmp_path / "r.mcap").exists()
