@@ -255,8 +255,28 @@ def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = 
     problems += resolve_paths(spec, registry)
     problems += validate(spec, registry)
     if problems:
-        raise GraphError(problems)
+        raise GraphError(capped(problems))
     return spec
+
+
+#: problems listed per file; the others are counted in one line
+MAX_PROBLEMS_PER_FILE = 20
+
+
+def capped(problems: list[Problem], limit: int = MAX_PROBLEMS_PER_FILE) -> list[Problem]:
+    """``problems`` with at most ``limit`` per file, then one line counting the rest of that
+    file's (a file full of errors is not reprinted line by line)."""
+    seen: dict[str, int] = {}
+    out: list[Problem] = []
+    for p in problems:
+        file = p.loc.file if p.loc is not None else ""
+        seen[file] = seen.get(file, 0) + 1
+        if seen[file] <= limit:
+            out.append(p)
+    for file, n in seen.items():
+        if n > limit:
+            out.append(Problem(Loc(file, 0, 0) if file else None, f"and {n - limit} more problems"))
+    return out
 
 
 def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,

@@ -307,3 +307,13 @@ def test_record_parameters_are_checked_at_validation_not_at_build(tmp_path, sess
         f"{where}: record: 'chunk_size': 1099511627776 must be <= 268435456",
         f"{where}: record: 'flush_period_s': inf is not allowed: a finite number is expected"]
     assert not (tmp_path / "r.mcap").exists()
+
+
+def test_a_file_full_of_errors_lists_twenty_then_counts_the_rest(tmp_path, session):
+    comps = "".join(f"  c{i}: {{type: t.Nothing{i}}}\n" for i in range(100))
+    g = write(tmp_path, "g.yaml", "components:\n" + comps)
+    probs = problems_of(session, g)
+    assert len(probs) == 21
+    assert [p.split(": ", 2)[:2] for p in probs[:20]] == [[loc_of(g, f"type: t.Nothing{i}}}"),
+                                                          f"component 'c{i}'"] for i in range(20)]
+    assert probs[-1] == f"{g}: and 80 more problems"
