@@ -334,14 +334,10 @@ class OfflineExecutor:
                         b[3] = b[3] + 1 if got == b[2] else 0
                         b[2] = got
                         due = t + p
-                        if b[3] >= IDLE_TIMER_FIRINGS and not (heap and heap[0][0] <= due and heap[0][3] != _TIMER):
-                            # idle for long, nothing else due before its next firing: skip to the next pending event
-                            pending = [e[0] for e in heap if e[3] != _TIMER]
-                            if pending and min(pending) > due:
-                                nxt = -(-min(pending) // p) * p
-                                timers_skipped[a] = timers_skipped.get(a, 0) + (nxt - due) // p
-                                due = nxt
-                        push(heap, (due, k, next(seq), _TIMER, a, b))
+                        # idle for long and nothing else due before its next firing: it may skip a gap
+                        idle = b[3] >= IDLE_TIMER_FIRINGS and not (heap and heap[0][0] <= due and heap[0][3] != _TIMER)
+                        if not idle:
+                            push(heap, (due, k, next(seq), _TIMER, a, b))
                         a.trigger = trig
                         try:
                             a.process(t)
@@ -349,6 +345,13 @@ class OfflineExecutor:
                             failed(a, trig, t, e)
                         else:
                             counts[a] += 1
+                        if idle:  # after process(): what it emitted counts as pending
+                            pending = [e[0] for e in heap if e[3] != _TIMER]
+                            if pending and min(pending) > due:  # skip to the next pending event
+                                nxt = -(-min(pending) // p) * p
+                                timers_skipped[a] = timers_skipped.get(a, 0) + (nxt - due) // p
+                                due = nxt
+                            push(heap, (due, k, next(seq), _TIMER, a, b))
                         continue
                     # input a fires its component (a reactive input, or a completed sync group)
                     comp = a.owner
