@@ -15,7 +15,7 @@ from .network import CycleError, Network
 from .paths import check_paths
 from .registry import Registry
 from .spec import GraphError, GraphSpec, Problem, closest, did_you_mean
-from .yamlloc import Loc
+from .yamlloc import Loc, brief
 
 __all__ = ["validate", "build", "to_dot", "RECORDER_TYPE", "resolve_record"]
 
@@ -84,7 +84,7 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
             continue
         if not isinstance(item, str):
             problems.append(Problem(spec.record_loc,
-                                    f"record: a stream is a pattern or {{from:, topic:}}, got {item!r}"))
+                                    f"record: a stream is a pattern or {{from:, topic:}}, got {brief(item)}"))
             continue
         hits = [o for o in every if fnmatch.fnmatchcase(o, item) or fnmatch.fnmatchcase(o.replace(".", "/", 1), item)]
         if not hits:

@@ -40,6 +40,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 from .ports import OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
+from .yamlloc import brief
 
 __all__ = [
     "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
@@ -129,9 +130,10 @@ class Param:
         elif t is list and isinstance(value, tuple):
             value = list(value)
         if not isinstance(value, t) or (t is int and isinstance(value, bool)):
-            raise ParamError(f"expected {t.__name__}, got {type(value).__name__} {value!r}")
+            kind = "list" if isinstance(value, list) else "dict" if isinstance(value, dict) else type(value).__name__
+            raise ParamError(f"expected {t.__name__}, got {kind} {brief(value)}")
         if self.choices is not None and value not in self.choices:
-            raise ParamError(f"{value!r} is not one of {list(self.choices)}")
+            raise ParamError(f"{brief(value)} is not one of {list(self.choices)}")
         nums = value if isinstance(value, list) else [value]
         for v in nums:
             if isinstance(v, (int, float)) and not isinstance(v, bool):

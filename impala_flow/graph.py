@@ -53,7 +53,19 @@ from .spec import (
     component_id_problem,
     did_you_mean,
 )
-from .yamlloc import MAX_BYTES, Loc, LocDict, LocList, YamlError, _decode, load_value, load_yaml, read_bounded, shown
+from .yamlloc import (
+    MAX_BYTES,
+    Loc,
+    LocDict,
+    LocList,
+    YamlError,
+    _decode,
+    brief,
+    load_value,
+    load_yaml,
+    read_bounded,
+    shown,
+)
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
@@ -403,7 +415,7 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
             mode = clock.get("mode", spec.clock_mode)
             if mode not in ("replay", "realtime"):
                 problems.append(Problem(clock.value_where("mode"),
-                                        f"clock mode must be 'replay' or 'realtime', got {mode!r}"))
+                                        f"clock mode must be 'replay' or 'realtime', got {brief(mode)}"))
             spec.clock_mode = mode
             if "speed" in clock:
                 try:
@@ -458,7 +470,7 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
     override = c.get("override", False)
     if not isinstance(override, bool):
         problems.append(Problem(c.value_where("override"), f"component '{cid}': override must be true or false, "
-                                                           f"got {override!r}"))
+                                                           f"got {brief(override)}"))
         override = False
     old = spec.components.get(cid)
     if old is not None and "type" not in c and not override:  # an includer refining an included component
@@ -481,7 +493,7 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
     on_error = c.get("on_error", "stop")
     if on_error not in ("stop", "skip"):
         problems.append(Problem(c.value_where("on_error"),
-                                f"component '{cid}': on_error must be 'stop' or 'skip', got {on_error!r}"))
+                                f"component '{cid}': on_error must be 'stop' or 'skip', got {brief(on_error)}"))
     spec.components[cid] = ComponentSpec(
         cid, str(c["type"]), dict(params), on_error, c.where("type"),
         dict(params.key_locs) if isinstance(params, LocDict) else {}, loc,

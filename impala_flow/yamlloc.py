@@ -23,7 +23,7 @@ from typing import Any
 import yaml
 
 __all__ = ["Loc", "LocDict", "LocList", "location", "load_yaml", "load_value", "YamlError", "Loader",
-           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "shown", "read_bounded"]
+           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "shown", "brief", "read_bounded"]
 
 #: largest graph file read (bytes): a graph is a few kB; this keeps validation under a second
 MAX_BYTES = 64 << 10
@@ -53,6 +53,12 @@ def shown(value: Any, limit: int = SHOWN_CHARS) -> str:
     if len(text) > limit:
         text = text[:limit] + f"...({len(text)} chars)"
     return text
+
+
+def brief(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for an error message quoting a value."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + f"...({len(text)} chars)"
 
 
 def read_bounded(path: str | Path, max_bytes: int, what: str = "a graph file") -> bytes:

@@ -317,3 +317,15 @@ def test_a_file_full_of_errors_lists_twenty_then_counts_the_rest(tmp_path, sessi
     assert [p.split(": ", 2)[:2] for p in probs[:20]] == [[loc_of(g, f"type: t.Nothing{i}}}"),
                                                           f"component 'c{i}'"] for i in range(20)]
     assert probs[-1] == f"{g}: and 80 more problems"
+
+
+def test_a_long_wrong_value_is_quoted_short(tmp_path, session):
+    values = list(range(5000))
+    g = write(tmp_path, "g.yaml", textwrap.dedent(CHAIN).replace("gain: 2.0", f"gain: {values}")
+              .replace("components:", f"clock: {{mode: {'m' * 3000}}}\ncomponents:"))
+    probs = problems_of(session, g)
+    text = repr(values)
+    assert probs == [
+        f"{loc_of(g, 'm' * 3000)}: clock mode must be 'replay' or 'realtime', got '{'m' * 59}...(3002 chars)",
+        f"{loc_of(g, 'gain: [')}: component 'gain' (t.Scale): parameter 'gain': expected float, got list "
+        f"{text[:60]}...({len(text)} chars)"]
