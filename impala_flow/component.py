@@ -143,13 +143,6 @@ class Param:
     def _check_bounds(self, v: float) -> None:
         if isinstance(v, float) and math.isnan(v):
             raise ParamError("NaN is not allowed")
-        if self.finite and isinstance(v, float) and math.isinf(v):
-            raise ParamError(f"{v!r} is not allowed: a finite number is expected")
-        if self.name.endswith("_s") and not -MAX_SECONDS <= v <= MAX_SECONDS:
-            raise ParamError(f"{v!r} s is out of range: a time in seconds must be within +-{MAX_SECONDS:.3g} s "
-                             "(int64 nanoseconds)")
-        if self.name.endswith("_ns") and not _INT64_MIN <= v <= _INT64_MAX:
-            raise ParamError(f"{v!r} ns is outside the int64 range of times")
         if self.ge is not None and not v >= self.ge:
             raise ParamError(f"{v!r} must be >= {self.ge}")
         if self.gt is not None and not v > self.gt:
@@ -158,6 +151,14 @@ class Param:
             raise ParamError(f"{v!r} must be <= {self.le}")
         if self.lt is not None and not v < self.lt:
             raise ParamError(f"{v!r} must be < {self.lt}")
+        # after the declared bounds (their message is the more precise), before any use
+        if self.finite and isinstance(v, float) and math.isinf(v):
+            raise ParamError(f"{v!r} is not allowed: a finite number is expected")
+        if self.name.endswith("_s") and not -MAX_SECONDS <= v <= MAX_SECONDS:
+            raise ParamError(f"{v!r} s is out of range: a time in seconds must be within +-{MAX_SECONDS:.3g} s "
+                             "(int64 nanoseconds)")
+        if self.name.endswith("_ns") and not _INT64_MIN <= v <= _INT64_MAX:
+            raise ParamError(f"{v!r} ns is outside the int64 range of times")
 
     def describe(self) -> str:
         bits = [self.type.__name__]
