@@ -40,7 +40,6 @@ from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 from .ports import OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
-from .yamlloc import brief
 
 __all__ = [
     "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
@@ -130,9 +129,13 @@ class Param:
         elif t is list and isinstance(value, tuple):
             value = list(value)
         if not isinstance(value, t) or (t is int and isinstance(value, bool)):
+            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+
             kind = "list" if isinstance(value, list) else "dict" if isinstance(value, dict) else type(value).__name__
             raise ParamError(f"expected {t.__name__}, got {kind} {brief(value)}")
         if self.choices is not None and value not in self.choices:
+            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+
             raise ParamError(f"{brief(value)} is not one of {list(self.choices)}")
         nums = value if isinstance(value, list) else [value]
         for v in nums:

@@ -208,8 +208,6 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                                    "description": "close a chunk at least this often (wall s); 0: by size only"},
                 "maxsize": {"type": "integer", "minimum": 1, "maximum": 1 << 16,
                             "description": "samples queued per recorded stream before its producer blocks"},
-                "max_queue_mb": {"type": "number", "exclusiveMinimum": 0, "maximum": 1 << 16,
-                                 "description": "MB queued per recorded stream before its producer blocks (live)"},
             },
         },
     }

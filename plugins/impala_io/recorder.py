@@ -2,20 +2,15 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
 from impala_flow.component import Component, Input, Output, Param
 from impala_flow.io import COMPRESSIONS, MissionWriter
 from impala_flow.msgs import Pose2D, is_message
-from impala_flow.ports import InputPort
-from impala_flow.sample import Sample
 
 from ._codecs import run_codecs
 
@@ -25,56 +20,13 @@ __all__ = ["Recorder", "VEHICLE_POSES"]
 VEHICLE_POSES = ("slam/pose", "ekf/pose", "odometry/pose", "deadreckoning/pose", "gps/pose", "truth/pose")
 
 
-def nbytes(data: Any, depth: int = 0) -> int:
-    """Bytes ``data`` holds in arrays and byte strings (its scalars count as 64): what a
-    queued sample costs in memory, to the order of magnitude that matters."""
-    if isinstance(data, np.ndarray):
-        return int(data.nbytes)
-    if isinstance(data, (bytes, bytearray, memoryview, str)):
-        return len(data)
-    if depth < 4 and dataclasses.is_dataclass(data) and not isinstance(data, type):
-        return 64 + sum(nbytes(getattr(data, f.name), depth + 1) for f in dataclasses.fields(data))
-    if depth < 4 and isinstance(data, (list, tuple)):
-        return 64 + sum(nbytes(x, depth + 1) for x in data)
-    return 64
-
-
-class _BytesBoundedInput(InputPort):
-    """A recorder input bounded in bytes as well as in samples: in a live run, a producer
-    whose sample would take the queue past ``max_bytes`` waits (like the ``block`` policy for
-    the count; counted in ``blocked``/``blocked_ns``), so nothing is dropped and the queue
-    holds at most ``max_bytes`` plus one sample. Offline, the recorder writes each sample as
-    it arrives: its queue never holds more than one."""
-
-    __slots__ = ("max_bytes",)
-
-    def _queued(self) -> int:
-        return sum(nbytes(x.data) for x in self._fifo)
-
-    def push(self, s: Sample) -> bool:
-        cond = self._cond
-        if cond is not None:
-            size = nbytes(s.data)
-            with cond:
-                if self._fifo and self._queued() + size > self.max_bytes:
-                    t0 = time.perf_counter_ns()
-                    while self._fifo and self._queued() + size > self.max_bytes:
-                        cond.wait(0.1)
-                    self.stats.blocked += 1
-                    self.stats.blocked_ns += time.perf_counter_ns() - t0
-                return super().push(s)
-        return super().push(s)
-
-
 class Recorder(Component):
     """Writes every sample it receives to ``path`` (MCAP, chunked, indexed).
 
     One input per recorded stream, named after its topic (``component/port``); the graph's
     ``record:`` section creates it with ``topics``. Inputs block when full (overflow
-    ``block``), in samples (``maxsize``) and in bytes (``max_queue_mb`` per input, live
-    runs): the recorder slows its producers down rather than dropping, and the run summary
-    reports the high-water mark and the waits. The writer holds at most one chunk
-    (``chunk_size``). The file's metadata says how it was made: the
+    ``block``): the recorder slows its producers down rather than dropping, and the run
+    summary reports the high-water mark. The file's metadata says how it was made: the
     resolved graph (YAML), the parameters of every component, the plugins and versions.
     """
 
@@ -89,8 +41,6 @@ class Recorder(Component):
     chunk_size = Param(int, default=1 << 20, ge=1024, le=1 << 28,
                        doc="bytes per chunk before compression (the writer holds at most one chunk)")
     maxsize = Param(int, default=4096, ge=1, le=1 << 16, doc="samples queued per input before blocking")
-    max_queue_mb = Param(float, default=64.0, gt=0.0, le=1 << 16,
-                         doc="MB queued per input before blocking (a live run's producers wait; nothing dropped)")
     flush_period_s = Param(float, default=1.0, ge=0.0,
                            doc="also close a chunk every this many wall seconds (crash safety of slow "
                            "streams); 0: by size only, so the same samples give the same bytes")
@@ -105,15 +55,6 @@ class Recorder(Component):
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
         return {t: Input(object, maxsize=params["maxsize"], overflow="block", required=False,
                          doc=f"records {o}") for t, o in params["topics"].items()}, {}
-
-    def __init__(self, name: str | None = None, **params: Any) -> None:
-        super().__init__(name, **params)
-        for topic, port in list(self.inputs.items()):
-            bounded = _BytesBoundedInput(self, topic, port.decl)
-            bounded.max_bytes = int(self.max_queue_mb * (1 << 20))
-            self.inputs[topic] = bounded
-            if self.__dict__.get(topic) is port:
-                self.__dict__[topic] = bounded
 
     def start(self) -> None:
         graph = json.loads(json.dumps(self.graph, default=str))  # plain data for safe_dump

@@ -5,10 +5,8 @@ line and exit 2, before anything is read or written; the recording is left byte 
 from __future__ import annotations
 
 import hashlib
-import threading
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 
@@ -133,34 +131,3 @@ def test_a_bad_period_on_the_command_line_is_one_line_naming_the_option(mission:
                  "--set", f"dr.period_s={value}"]) == 2
     assert _one_error(capsys, "replay") == (f"--set dr.period_s={value}: component 'dr' (slam.DeadReckoning): "
                                             f"parameter 'period_s': {why}")
-
-
-def test_a_live_recorder_queue_is_bounded_in_bytes_and_drops_nothing(tmp_path: Path) -> None:
-    """A producer of 1 MiB grids faster than the recorder: with max_queue_mb=2.5 it waits
-    once two grids are queued (a third would pass 2.5 MiB), and goes on when one is taken."""
-    from impala_flow.sample import Sample
-    from impala_io.recorder import Recorder, nbytes
-
-    grid = msgs.Grid(np.zeros((512, 512), np.float32), 0.2, 0.0, 0.0)
-    assert 1 << 20 <= nbytes(grid) < (1 << 20) + 1024
-    rec = Recorder("record", path=str(tmp_path / "r.mcap"), topics={"radar/image": "src.image"}, max_queue_mb=2.5)
-    port = rec.inputs["radar/image"]
-    port._cond = threading.Condition(threading.RLock())  # as the real-time executor sets it
-    pushed: list[int] = []
-
-    def produce() -> None:
-        for i in range(3):
-            port.push(Sample(i, grid, i))
-            pushed.append(i)
-
-    producer = threading.Thread(target=produce, daemon=True)
-    producer.start()
-    producer.join(timeout=1.0)
-    assert producer.is_alive() and pushed == [0, 1]  # the third waits: 3 MiB > 2.5 MiB
-    assert sum(nbytes(s.data) for s in port._fifo) <= 2.5 * (1 << 20)
-    with port._cond:
-        assert port.take_sample().seq == 0  # the recorder writes one: room for the third
-    producer.join(timeout=30)
-    assert not producer.is_alive() and pushed == [0, 1, 2]
-    assert [s.seq for s in port._fifo] == [1, 2]
-    assert port.stats.blocked == 1 and port.stats.dropped == 0 and port.stats.received == 3
