@@ -15,7 +15,7 @@ from .network import CycleError, Network
 from .paths import check_paths
 from .registry import Registry
 from .spec import GraphError, GraphSpec, Problem, closest, did_you_mean
-from .yamlloc import Loc
+from .yamlloc import Loc, brief
 
 __all__ = ["validate", "build", "to_dot", "RECORDER_TYPE", "resolve_record"]
 
@@ -84,7 +84,7 @@ def resolve_record(spec: GraphSpec, outputs: dict[str, dict[str, Output]], probl
             continue
         if not isinstance(item, str):
             problems.append(Problem(spec.record_loc,
-                                    f"record: a stream is a pattern or {{from:, topic:}}, got {item!r}"))
+                                    f"record: a stream is a pattern or {{from:, topic:}}, got {brief(item)}"))
             continue
         hits = [o for o in every if fnmatch.fnmatchcase(o, item) or fnmatch.fnmatchcase(o.replace(".", "/", 1), item)]
         if not hits:
@@ -166,6 +166,11 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
                                     "(is the io plugin installed and not blocked?)"))
         else:
             resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
+            # its parameters (chunk_size, flush_period_s, ...) are checked now, not when it is built
+            given = {k: v for k, v in spec.record.items() if k != "streams"}
+            _, bad = registry.components[RECORDER_TYPE].validate_params(given)
+            for k, msg in bad.items():
+                problems.append(Problem(spec.record_loc, f"record: '{k}': {msg}"))
     problems += check_paths(spec, registry)
     return problems
 

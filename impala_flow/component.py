@@ -60,6 +60,14 @@ REQUIRED: Any = _Required()
 PATH_KINDS = ("read", "write", "write_dir", "read_or_name")
 
 
+#: largest time in seconds a ``*_s`` parameter may hold: its nanoseconds fit in an int64
+MAX_SECONDS = 9.2e9
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
+#: bounds of a periodic timer's period (s): at most a million firings per mission second,
+#: and a period whose nanoseconds fit in an int64
+MIN_PERIOD_S, MAX_PERIOD_S = 1e-6, MAX_SECONDS
+
+
 class ParamError(ValueError):
     """A parameter value that does not fit its declaration."""
 
@@ -78,16 +86,22 @@ class Param:
     against the folder of the graph file it is written in (the working directory for a
     ``--set``/``--var`` value); validation refuses an output that overwrites an input and
     an output folder that cannot be created.
+
+    Every number must be finite (NaN and inf are refused; ``finite=False`` lets a parameter
+    take inf, never NaN). A parameter whose name says it is a time keeps to int64
+    nanoseconds: ``*_s`` within +-:data:`MAX_SECONDS`, ``*_ns`` within int64, so ``1e308``
+    is refused where it is written, not in the middle of a run.
     """
 
     def __init__(
         self, type: type = float, default: Any = REQUIRED, *, ge: float | None = None,
         gt: float | None = None, le: float | None = None, lt: float | None = None,
-        choices: tuple | list | None = None, doc: str = "", path: str | None = None,
+        choices: tuple | list | None = None, doc: str = "", path: str | None = None, finite: bool = True,
     ) -> None:
         if path is not None and (path not in PATH_KINDS or type is not str):
             raise ValueError(f"Param path must be one of {PATH_KINDS} on a str parameter, got {path!r}")
         self.path = path
+        self.finite = finite
         self.type = type
         self.default = default
         self.ge, self.gt, self.le, self.lt = ge, gt, le, lt
@@ -115,9 +129,14 @@ class Param:
         elif t is list and isinstance(value, tuple):
             value = list(value)
         if not isinstance(value, t) or (t is int and isinstance(value, bool)):
-            raise ParamError(f"expected {t.__name__}, got {type(value).__name__} {value!r}")
+            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+
+            kind = "list" if isinstance(value, list) else "dict" if isinstance(value, dict) else type(value).__name__
+            raise ParamError(f"expected {t.__name__}, got {kind} {brief(value)}")
         if self.choices is not None and value not in self.choices:
-            raise ParamError(f"{value!r} is not one of {list(self.choices)}")
+            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+
+            raise ParamError(f"{brief(value)} is not one of {list(self.choices)}")
         nums = value if isinstance(value, list) else [value]
         for v in nums:
             if isinstance(v, (int, float)) and not isinstance(v, bool):
@@ -135,6 +154,14 @@ class Param:
             raise ParamError(f"{v!r} must be <= {self.le}")
         if self.lt is not None and not v < self.lt:
             raise ParamError(f"{v!r} must be < {self.lt}")
+        # after the declared bounds (their message is the more precise), before any use
+        if self.finite and isinstance(v, float) and math.isinf(v):
+            raise ParamError(f"{v!r} is not allowed: a finite number is expected")
+        if self.name.endswith("_s") and not -MAX_SECONDS <= v <= MAX_SECONDS:
+            raise ParamError(f"{v!r} s is out of range: a time in seconds must be within +-{MAX_SECONDS:.3g} s "
+                             "(int64 nanoseconds)")
+        if self.name.endswith("_ns") and not _INT64_MIN <= v <= _INT64_MAX:
+            raise ParamError(f"{v!r} ns is outside the int64 range of times")
 
     def describe(self) -> str:
         bits = [self.type.__name__]
@@ -235,9 +262,23 @@ class Periodic:
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
 
+    def period_s(self, params: dict[str, Any]) -> float:
+        return float(params[self.period] if isinstance(self.period, str) else self.period)
+
+    def check(self, params: dict[str, Any]) -> str | None:
+        """Why this timer's period (from validated ``params``) cannot run, or None: it must be
+        finite and within [:data:`MIN_PERIOD_S`, :data:`MAX_PERIOD_S`] seconds."""
+        try:
+            p = self.period_s(params)
+        except (KeyError, TypeError, ValueError):
+            return f"timer '{self.name}': period {self.period!r} is not a number of seconds"
+        if not (math.isfinite(p) and MIN_PERIOD_S <= p <= MAX_PERIOD_S):
+            return (f"timer '{self.name}': period {p!r} s must be within [{MIN_PERIOD_S:g}, "
+                    f"{MAX_PERIOD_S:.3g}] s")
+        return None
+
     def period_ns(self, comp: Component) -> int:
-        p = comp._params[self.period] if isinstance(self.period, str) else self.period
-        return max(1, int(round(float(p) * 1e9)))
+        return max(1, int(round(self.period_s(comp._params) * 1e9)))
 
 
 def _refuse_shared_names(owner: str, *tables: dict) -> None:
@@ -309,6 +350,12 @@ class Component:
                 problems[k] = f"required parameter missing ({p.describe()})"
             else:
                 values[k] = p.default
+        for timer in cls.__timers__.values():  # a period of 1e-9 s would never let the mission advance
+            key = timer.period if isinstance(timer.period, str) else ""
+            if key not in problems:
+                why = timer.check(values)
+                if why:
+                    problems[key] = why
         return values, problems
 
     @classmethod

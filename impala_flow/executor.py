@@ -33,6 +33,19 @@ future). When every source is exhausted and every event processed, each componen
 then every ``stop()``. The same inputs give the same order, hence bit-identical outputs,
 on any machine and at any replay speed: the clock only sleeps between events.
 
+Periodic timers fire at every multiple of their period while the mission runs, with two
+bounds so that no period and no mission can keep the executor spinning:
+
+- before anything starts, a timer that would fire more than :data:`MAX_TIMER_FIRINGS` times
+  over the mission's span (the longest duration its sources announce) is refused, naming
+  the component, the parameter and the count (:func:`timer_problems`);
+- over a gap where nothing at all is pending, a timer whose component has received no
+  sample for :data:`IDLE_TIMER_FIRINGS` firings in a row skips ahead: its next firing is the
+  first multiple of its period at or after the next pending event. The skipped firings are
+  counted (``timer_firings_skipped`` in the component's summary figures). The rule reads
+  only the event queue, so it is deterministic; a run whose timers never idle that long
+  is unchanged by it.
+
 Failures: the first error is raised, with the summary attached (``error.summary``, the
 events processed so far included); ``stop()`` runs for every component whose ``start()``
 was called, even one whose ``start()`` raised (so it can release what it took);
@@ -60,13 +73,60 @@ from .ports import InputPort, OutputTypeError
 from .summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters", "event_order",
-           "check_source_time"]
+           "check_source_time", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]
 
 _SRC, _DELIVER, _TIMER, _TRIG = 0, 1, 2, 3
 _BEFORE_ALL = -(1 << 63) - 1  # earlier than any int64 sample time
 _INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
 
 ProgressFn = Callable[[int, int | None], None]
+
+#: most firings of one periodic timer over a mission's span (10 Hz for 11 days)
+MAX_TIMER_FIRINGS = 10_000_000
+#: firings in a row without a new sample after which an idle timer skips an empty gap
+IDLE_TIMER_FIRINGS = 1000
+
+
+def _years(span_s: float) -> str:
+    return f" ({span_s / 31_557_600:.1f} years)" if span_s >= 31_557_600 else ""
+
+
+def timer_problems(network: Network) -> list[str]:
+    """One line per periodic timer that would fire more than :data:`MAX_TIMER_FIRINGS`
+    times over the mission's span (see :func:`_timer_spins`)."""
+    return [f"component '{name}' ({kind}): {why}" for name, kind, why in _timer_spins(network)]
+
+
+def _timer_spins(network: Network) -> list[tuple[str, str, str]]:
+    """(component, type, why) per periodic timer that would fire more than :data:`MAX_TIMER_FIRINGS`
+    times over the mission's span (the longest ``duration_hint_ns()`` of the sources; no
+    check when none knows it). A period of 1e-9 s on a minute of mission, or a mission whose
+    times span decades, is refused here, before anything starts."""
+    hints = []
+    for c in network.components.values():
+        if isinstance(c, Source):
+            try:
+                h = c.duration_hint_ns()
+            except Exception:  # noqa: BLE001 - only a hint
+                h = None
+            if h:
+                hints.append(int(h))
+    if not hints:
+        return []
+    span = max(hints)
+    out = []
+    for c in network.components.values():
+        for tname, timer in c.__timers__.items():
+            p = timer.period_ns(c)
+            firings = span // p + 1
+            if firings > MAX_TIMER_FIRINGS:
+                param = f"parameter '{timer.period}' = {timer.period_s(c._params):g} s" \
+                    if isinstance(timer.period, str) else f"period {timer.period_s(c._params):g} s"
+                kind = type(c).type_name or type(c).__name__
+                out.append((c.name, kind, f"{param}: timer '{tname}' would fire {firings:.3g} times "
+                           f"over the mission's {span / 1e9:.6g} s{_years(span / 1e9)}, more than "
+                           f"{MAX_TIMER_FIRINGS:.0e}: raise the period, or check the mission's times"))
+    return out
 
 
 def event_order(network: Network) -> list[Component]:
@@ -112,6 +172,7 @@ class OfflineExecutor:
         summary = self.summary
         counts = {c: 0 for c in order}  # by component: no .name lookup per call
         skipped = {c.name: 0 for c in order}
+        timers_skipped: dict[Component, int] = {}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
         # second key: 2 * rank + phase (0: an input receives, 1: a component fires)
         for c in order:
@@ -179,6 +240,9 @@ class OfflineExecutor:
             log_skip(comp.log, skipped[comp.name], t, e)
 
         try:
+            spins = _timer_spins(self.net)  # before any start(): nothing to undo
+            if spins:
+                raise ComponentError(spins[0][0], "", None, "start", ValueError(spins[0][2]))
             for c in order:
                 if c.live:
                     raise ComponentError(c.name, "", None, "start", RuntimeError(
@@ -199,7 +263,8 @@ class OfflineExecutor:
                     for tname, timer in c.__timers__.items():
                         p = timer.period_ns(c)
                         first = -(-t0 // p) * p
-                        push(heap, (first, 2 * rank[c.name] + 1, next(seq), _TIMER, c, (tname, p)))
+                        # [name, period, samples received at the last firing, idle firings in a row]
+                        push(heap, (first, 2 * rank[c.name] + 1, next(seq), _TIMER, c, [tname, p, -1, 0]))
             next_check = 256
             last_progress = wall0
             clock = self.clock  # an unpaced replay clock never waits: no call per timestamp
@@ -266,8 +331,15 @@ class OfflineExecutor:
                         pull(a)
                         continue
                     else:  # a periodic timer of component a
-                        trig, p = b
-                        push(heap, (t + p, k, next(seq), _TIMER, a, b))
+                        trig, p = b[0], b[1]
+                        got = sum(inp.stats.received for inp in a.inputs.values())
+                        b[3] = b[3] + 1 if got == b[2] else 0
+                        b[2] = got
+                        due = t + p
+                        # idle for long and nothing else due before its next firing: it may skip a gap
+                        idle = b[3] >= IDLE_TIMER_FIRINGS and not (heap and heap[0][0] <= due and heap[0][3] != _TIMER)
+                        if not idle:
+                            push(heap, (due, k, next(seq), _TIMER, a, b))
                         a.trigger = trig
                         try:
                             a.process(t)
@@ -275,6 +347,13 @@ class OfflineExecutor:
                             failed(a, trig, t, e)
                         else:
                             counts[a] += 1
+                        if idle:  # after process(): what it emitted counts as pending
+                            pending = [e[0] for e in heap if e[3] != _TIMER]
+                            if pending and min(pending) > due:  # skip to the next pending event
+                                nxt = -(-min(pending) // p) * p
+                                timers_skipped[a] = timers_skipped.get(a, 0) + (nxt - due) // p
+                                due = nxt
+                            push(heap, (due, k, next(seq), _TIMER, a, b))
                         continue
                     # input a fires its component (a reactive input, or a completed sync group)
                     comp = a.owner
@@ -329,6 +408,7 @@ class OfflineExecutor:
             summary.processed = {c.name: n for c, n in counts.items()}
             summary.skipped = {k: v for k, v in skipped.items() if v}
             later += collect_counters(summary, order, in_flight,
+                                      extra={c.name: {"timer_firings_skipped": n} for c, n in timers_skipped.items()},
                                       reporting=[c for c in started if c.name not in start_failed])
             if error is None and later:
                 error, later = later[0], later[1:]

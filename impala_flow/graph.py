@@ -53,7 +53,19 @@ from .spec import (
     component_id_problem,
     did_you_mean,
 )
-from .yamlloc import MAX_BYTES, Loc, LocDict, LocList, YamlError, load_value, load_yaml
+from .yamlloc import (
+    MAX_BYTES,
+    Loc,
+    LocDict,
+    LocList,
+    YamlError,
+    _decode,
+    brief,
+    load_value,
+    load_yaml,
+    read_bounded,
+    shown,
+)
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
@@ -174,18 +186,23 @@ class _Variables:
 # loading
 
 def _check_keys(d: LocDict, allowed: Iterable[str], what: str, problems: list[Problem]) -> None:
+    """One problem for the unknown keys of ``d``: the first, shown short and escaped, and how
+    many more (a file that is not a graph is never echoed back key by key)."""
     allowed = tuple(allowed)
-    for k in d:
-        if k not in allowed:
-            hint = closest(str(k), allowed)
-            problems.append(Problem(d.where(k), f"unknown key '{k}' in {what}"
-                                    + did_you_mean(hint, f"; expected one of {', '.join(allowed)}")))
+    unknown = [k for k in d if k not in allowed]
+    if not unknown:
+        return
+    k = unknown[0]
+    hint = closest(str(k), allowed)
+    more = f" (and {len(unknown) - 1} more unknown key{'s' * (len(unknown) > 2)})" if len(unknown) > 1 else ""
+    problems.append(Problem(d.where(k), f"unknown key '{shown(k)}' in {what}{more}"
+                            + did_you_mean(hint, f"; expected one of {', '.join(allowed)}")))
 
 
 def parse_set(item: str) -> tuple[str, str, Any]:
     """``comp.param=value`` -> (comp, param, value parsed as YAML scalar/list)."""
     if "=" not in item or "." not in item.split("=", 1)[0]:
-        raise GraphError([Problem(None, f"--set {item!r}: expected COMPONENT.PARAM=VALUE")])
+        raise GraphError([Problem(None, f"--set '{shown(item)}': expected COMPONENT.PARAM=VALUE")])
     key, raw = item.split("=", 1)
     comp, param = key.split(".", 1)
     try:
@@ -211,6 +228,11 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...], done: set
     doc = load_yaml(path)
     if not isinstance(doc, LocDict):
         raise GraphError([Problem(Loc(str(path), 1, 1), "a graph file must be a mapping (name:, components:, ...)")])
+    if doc and not any(k in TOP_KEYS or closest(str(k)[:40], TOP_KEYS) for k in doc):
+        # another YAML file (or a text file that parses as one): one line, none of its contents
+        # (a misspelt key of a graph, close to one, is reported as such by _merge)
+        raise GraphError([Problem(Loc(str(path), 1, 1), f"not a graph file: none of its {len(doc)} keys is a "
+                                  f"graph key ({', '.join(TOP_KEYS)})")])
     chain: list[tuple[LocDict, Path]] = []
     inc = doc.get("include")
     if inc is not None:
@@ -218,7 +240,7 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...], done: set
         for i, item in enumerate(items):
             loc = inc.where(i) if isinstance(inc, LocList) else doc.value_where("include")
             if not isinstance(item, str):
-                problems.append(Problem(loc, f"include expects a file name, got {item!r}"))
+                problems.append(Problem(loc, f"include expects a file name, got '{shown(item)}'"))
                 continue
             p = (path.parent / item).resolve()
             if p in seen:
@@ -226,8 +248,8 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...], done: set
                 continue
             if p in done:
                 continue  # included already through another file: merged once
-            if not p.is_file():
-                problems.append(Problem(loc, f"included file not found: {item}"))
+            if not p.exists():
+                problems.append(Problem(loc, f"included file not found: {shown(item)}"))
                 continue
             done.add(p)
             sub, subchain = _read(p, problems, (*seen, p), done, budget)
@@ -245,8 +267,28 @@ def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = 
     problems += resolve_paths(spec, registry)
     problems += validate(spec, registry)
     if problems:
-        raise GraphError(problems)
+        raise GraphError(capped(problems))
     return spec
+
+
+#: problems listed per file; the others are counted in one line
+MAX_PROBLEMS_PER_FILE = 20
+
+
+def capped(problems: list[Problem], limit: int = MAX_PROBLEMS_PER_FILE) -> list[Problem]:
+    """``problems`` with at most ``limit`` per file, then one line counting the rest of that
+    file's (a file full of errors is not reprinted line by line)."""
+    seen: dict[str, int] = {}
+    out: list[Problem] = []
+    for p in problems:
+        file = p.loc.file if p.loc is not None else ""
+        seen[file] = seen.get(file, 0) + 1
+        if seen[file] <= limit:
+            out.append(p)
+    for file, n in seen.items():
+        if n > limit:
+            out.append(Problem(Loc(file, 0, 0) if file else None, f"and {n - limit} more problems"))
+    return out
 
 
 def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,
@@ -271,9 +313,9 @@ def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: di
     if text is not None:
         spec.source_text = text
     else:
-        try:
-            spec.source_text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeError):
+        try:  # read again, bounded: the file could have been swapped since
+            spec.source_text = _decode(str(path), read_bounded(path, MAX_BYTES))
+        except YamlError:
             spec.source_text = ""
     docs = chain + [(doc, path)]
     folders = [str(p.parent) for _, p in docs]  # the main file's as given, the includes' absolute
@@ -285,7 +327,7 @@ def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: di
         if isinstance(v, LocDict):
             for k, val in v.items():
                 if not isinstance(k, str) or not _NAME.match(k):
-                    problems.append(Problem(v.where(k), f"variable name {k!r} must be a name like out_dir "
+                    problems.append(Problem(v.where(k), f"variable name '{shown(k)}' must be a name like out_dir "
                                                         "(letters, digits, '_')"))
                     continue
                 var.raw[k], var.locs[k] = val, v.value_where(k)
@@ -321,6 +363,7 @@ def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: di
             continue
         spec.components[comp].params[param] = value
         spec.components[comp].param_bases[param] = ""  # the working directory
+        spec.components[comp].param_locs[param] = Loc(f"--set {shown(item, 80)}", 0, 0)  # its problems name it
     return spec, problems
 
 
@@ -372,7 +415,7 @@ def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
             mode = clock.get("mode", spec.clock_mode)
             if mode not in ("replay", "realtime"):
                 problems.append(Problem(clock.value_where("mode"),
-                                        f"clock mode must be 'replay' or 'realtime', got {mode!r}"))
+                                        f"clock mode must be 'replay' or 'realtime', got {brief(mode)}"))
             spec.clock_mode = mode
             if "speed" in clock:
                 try:
@@ -427,7 +470,7 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
     override = c.get("override", False)
     if not isinstance(override, bool):
         problems.append(Problem(c.value_where("override"), f"component '{cid}': override must be true or false, "
-                                                           f"got {override!r}"))
+                                                           f"got {brief(override)}"))
         override = False
     old = spec.components.get(cid)
     if old is not None and "type" not in c and not override:  # an includer refining an included component
@@ -450,7 +493,7 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
     on_error = c.get("on_error", "stop")
     if on_error not in ("stop", "skip"):
         problems.append(Problem(c.value_where("on_error"),
-                                f"component '{cid}': on_error must be 'stop' or 'skip', got {on_error!r}"))
+                                f"component '{cid}': on_error must be 'stop' or 'skip', got {brief(on_error)}"))
     spec.components[cid] = ComponentSpec(
         cid, str(c["type"]), dict(params), on_error, c.where("type"),
         dict(params.key_locs) if isinstance(params, LocDict) else {}, loc,
@@ -465,11 +508,11 @@ def _parse_connection(item: Any, loc: Loc | None, problems: list[Problem]) -> Co
             return None
         item = f"{item['from']} -> {item['to']}" + (" [delay]" if item.get("delay") else "")
     if not isinstance(item, str):
-        problems.append(Problem(loc, f"a connection is 'component.output -> component.input', got {item!r}"))
+        problems.append(Problem(loc, f"a connection is 'component.output -> component.input', got '{shown(item)}'"))
         return None
     m = CONNECTION.match(item)
     if not m:
-        problems.append(Problem(loc, f"cannot read connection {item!r}: "
+        problems.append(Problem(loc, f"cannot read connection '{shown(item)}': "
                                      "expected 'component.output -> component.input'"))
         return None
     return ConnectionSpec(m.group(1), m.group(2), m.group(3), m.group(4), bool(m.group(5)), loc)

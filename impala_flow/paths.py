@@ -7,14 +7,18 @@ path is resolved against the folder of the graph file it is written in (like
 ``--set``: it then stays relative to the working directory where the user typed it.
 
 Validation refuses, each located: an output that is the same file (links resolved) as an
-input a component reads (recording over the mission being replayed destroys it); two
-outputs on one path; an output whose folder cannot be created (a parent is a file, or not
-writable). Nothing is created at validation time.
+input a component reads (recording over the mission being replayed destroys it), lies
+inside an input folder, or is a folder containing an input (:func:`output_clash`); two
+outputs on one path; an output that cannot be created: a parent is a file or not writable,
+a name longer than the file system takes (``ENAMETOOLONG``, found here rather than in
+``stop()`` after the whole run), a named pipe or socket where a file is written. Nothing is
+created at validation time.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 from dataclasses import dataclass
 from pathlib import PurePath
 
@@ -22,7 +26,8 @@ from .registry import Registry
 from .spec import GraphSpec, Problem
 from .yamlloc import Loc
 
-__all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash"]
+__all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash",
+           "not_writable"]
 
 
 def looks_like_file(value: str) -> bool:
@@ -98,28 +103,63 @@ def _same(a: str, b: str) -> bool:
         return False
 
 
+def _limit(folder: str, name: str, default: int) -> int:
+    try:
+        return int(os.pathconf(folder, name))
+    except (OSError, ValueError):
+        return default
+
+
+def _too_long(path: str, existing: str) -> str | None:
+    """Why the absolute ``path`` cannot exist on the file system of ``existing`` (its
+    deepest existing folder): a name or the whole path too long (``ENAMETOOLONG``)."""
+    name_max = _limit(existing, "PC_NAME_MAX", 255)
+    for part in path.split(os.sep):
+        size = len(os.fsencode(part))
+        if size > name_max:
+            return f"the name '{part[:24]}...' is {size} bytes long, more than the {name_max} the file system takes"
+    size, path_max = len(os.fsencode(path)), _limit(existing, "PC_PATH_MAX", 4096)
+    if size >= path_max:
+        return f"the path is {size} bytes long, more than the {path_max - 1} the file system takes"
+    return None
+
+
+def not_writable(path: str, kind: str = "write") -> str | None:
+    """Why ``path`` cannot be written as a file (``kind`` "write") or a folder ("write_dir"),
+    or None: a folder where a file goes (or the reverse), a named pipe or socket (writing
+    would wait or fail), no write permission, a name too long, a parent that is a file or
+    in which nothing can be created. Nothing is created."""
+    path = os.path.abspath(os.path.expanduser(path))
+    existing = path if os.path.exists(path) else os.path.dirname(path)
+    while not os.path.exists(existing):
+        up = os.path.dirname(existing)
+        if up == existing:
+            break
+        existing = up
+    too_long = _too_long(path, existing if os.path.isdir(existing) else os.path.dirname(existing))
+    if too_long:
+        return too_long
+    if os.path.exists(path):
+        st = os.stat(path)
+        if kind == "write" and stat.S_ISDIR(st.st_mode):
+            return "it is a folder, not a file"
+        if kind == "write_dir" and not stat.S_ISDIR(st.st_mode):
+            return "it is a file, not a folder"
+        if stat.S_ISFIFO(st.st_mode) or stat.S_ISSOCK(st.st_mode):
+            return "it is a named pipe or a socket, not a file"
+        if not os.access(path, os.W_OK):
+            return "it is not writable"
+        return None
+    if not os.path.isdir(existing):
+        return f"its folder cannot be created: '{existing}' is a file"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"its folder cannot be created: no permission to write in '{existing}'"
+    return None
+
+
 def _not_creatable(f: GraphFile) -> str | None:
     """Why ``f`` (an output) cannot be written, or None."""
-    path = os.path.abspath(f.path)
-    if os.path.exists(path):
-        if f.kind == "write" and os.path.isdir(path):
-            return f"'{f.path}' is a folder, not a file"
-        if f.kind == "write_dir" and not os.path.isdir(path):
-            return f"'{f.path}' is a file, not a folder"
-        if not os.access(path, os.W_OK):
-            return f"'{f.path}' is not writable"
-        return None
-    parent = os.path.dirname(path)
-    while not os.path.exists(parent):
-        up = os.path.dirname(parent)
-        if up == parent:
-            break
-        parent = up
-    if not os.path.isdir(parent):
-        return f"its folder cannot be created: '{parent}' is a file"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return f"its folder cannot be created: no permission to write in '{parent}'"
-    return None
+    return not_writable(f.path, f.kind)
 
 
 def check_paths(spec: GraphSpec, registry: Registry) -> list[Problem]:
@@ -133,6 +173,10 @@ def check_paths(spec: GraphSpec, registry: Registry) -> list[Problem]:
             if _same(w.path, r.path):
                 problems.append(Problem(w.loc, f"{w.who} writes '{w.path}', the file {r.who} reads (at {r.loc}): "
                                                "it would be overwritten; write somewhere else"))
+                continue
+            clash = output_clash(w.path, [(r.path, f"the input of {r.who} (at {r.loc})")])
+            if clash:  # a file inside a folder read, or a folder written that holds a file read
+                problems.append(Problem(w.loc, f"{w.who}: {clash}"))
         for w0 in writes[:i]:
             if _same(w.path, w0.path):
                 problems.append(Problem(w.loc, f"{w.who} writes '{w.path}', as {w0.who} does (at {w0.loc}): "

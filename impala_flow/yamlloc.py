@@ -13,7 +13,9 @@ node is converted once: an alias shares the object of its anchor.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,7 +23,7 @@ from typing import Any
 import yaml
 
 __all__ = ["Loc", "LocDict", "LocList", "location", "load_yaml", "load_value", "YamlError", "Loader",
-           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES"]
+           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "shown", "brief", "read_bounded"]
 
 #: largest graph file read (bytes): a graph is a few kB; this keeps validation under a second
 MAX_BYTES = 64 << 10
@@ -38,6 +40,59 @@ _FLOAT = re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]
 
 class YamlError(ValueError):
     """The file is not valid YAML (one line, with file:line:col)."""
+
+
+#: characters of a key or value quoted in an error message (a file's contents are never echoed at length)
+SHOWN_CHARS = 40
+
+
+def shown(value: Any, limit: int = SHOWN_CHARS) -> str:
+    """``value`` as text for an error message: control characters escaped, cut to ``limit``
+    characters (an included ``/etc/shadow`` is not echoed back, a terminal is not driven)."""
+    text = repr(value)[1:-1] if isinstance(value, str) else repr(value)
+    if len(text) > limit:
+        text = text[:limit] + f"...({len(text)} chars)"
+    return text
+
+
+def brief(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for an error message quoting a value."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + f"...({len(text)} chars)"
+
+
+def read_bounded(path: str | Path, max_bytes: int, what: str = "a graph file") -> bytes:
+    """The bytes of ``path``, a regular file of at most ``max_bytes``; else one-line
+    :class:`YamlError`. A named pipe, a device (``/dev/zero``), a socket or a folder is
+    refused before it is opened for reading (opening a FIFO would wait for a writer, reading
+    ``/dev/zero`` would never end); a file is read up to ``max_bytes + 1`` bytes at most."""
+    file = str(path)
+    try:
+        st = os.stat(file)
+    except OSError as e:
+        raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a named pipe" if stat.S_ISFIFO(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
+                else "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+        raise YamlError(f"{file}: is {kind}, not {what}")
+    if st.st_size > max_bytes:
+        raise YamlError(f"{file}: larger than {max_bytes // 1024} kB: not {what}")
+    try:
+        # O_NONBLOCK: had it been swapped for a FIFO since the stat, open() does not wait
+        fd = os.open(file, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as e:
+        raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise YamlError(f"{file}: not a regular file, not {what}")
+        try:
+            data = f.read(max_bytes + 1)
+        except OSError as e:
+            raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
+    if len(data) > max_bytes:
+        raise YamlError(f"{file}: larger than {max_bytes // 1024} kB: not {what}")
+    return data
 
 
 class _PyEvents(yaml.SafeLoader):
@@ -165,8 +220,8 @@ class Loc:
     line: int  # 1-based
     col: int   # 1-based
 
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.col}"
+    def __str__(self) -> str:  # line 0: not in a file (a command-line option, named by ``file``)
+        return f"{self.file}:{self.line}:{self.col}" if self.line else self.file
 
 
 class LocDict(dict):
@@ -252,7 +307,7 @@ def _convert(loader: Loader, node: yaml.Node, file: str, memo: dict[int, Any]) -
     if key in memo:  # an alias: the object of its anchor, converted once
         return memo[key]
     if isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and node.tag not in _PLAIN_TAGS:
-        raise YamlError(f"{_loc(file, node)}: invalid YAML: tag '{node.tag}' is not allowed (safe loader)")
+        raise YamlError(f"{_loc(file, node)}: invalid YAML: tag '{shown(node.tag)}' is not allowed (safe loader)")
     if isinstance(node, yaml.MappingNode):
         d = LocDict()
         d.loc, d.key_locs, d.value_locs = _loc(file, node), {}, {}
@@ -263,7 +318,7 @@ def _convert(loader: Loader, node: yaml.Node, file: str, memo: dict[int, Any]) -
             except TypeError:
                 raise YamlError(f"{_loc(file, knode)}: invalid YAML: a key must be a scalar") from None
             if k in d:
-                raise YamlError(f"{_loc(file, knode)}: duplicate key '{k}'")
+                raise YamlError(f"{_loc(file, knode)}: duplicate key '{shown(k)}'")
             d[k] = _convert(loader, vnode, file, memo)
             d.key_locs[k] = _loc(file, knode)
             d.value_locs[k] = _loc(file, vnode)
@@ -292,17 +347,7 @@ def load_yaml(path: str | Path, text: str | None = None) -> Any:
     """Load ``path`` with the safe loader, keeping locations; errors are one line."""
     file = str(path)
     if text is None:
-        try:
-            p = Path(path)
-            if p.is_dir():
-                raise YamlError(f"{file}: is a folder, not a YAML file")
-            with p.open("rb") as f:
-                data = f.read(MAX_BYTES + 1)
-        except OSError as e:
-            raise YamlError(f"{file}: cannot read: {e.strerror or e}") from None
-        if len(data) > MAX_BYTES:
-            raise YamlError(f"{file}: larger than {MAX_BYTES // 1024} kB: not a graph file")
-        text = _decode(file, data)
+        text = _decode(file, read_bounded(path, MAX_BYTES))
     elif len(text) > MAX_BYTES:
         raise YamlError(f"{file}: larger than {MAX_BYTES // 1024} kB: not a graph file")
     try:

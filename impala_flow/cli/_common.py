@@ -13,7 +13,9 @@ import yaml
 
 from ..build import RECORDER_TYPE
 from ..component import Source
+from ..executor import timer_problems
 from ..network import Network
+from ..paths import not_writable
 from ..session import Session
 from ..spec import GraphError, checked_speed
 from ..summary import ComponentError, RunSummary
@@ -60,7 +62,10 @@ def check_speed(value: Any) -> None:
 
 def check_writable_file(path: str, option: str) -> None:
     """Refuse, before a run, an output file that cannot be written (exit 2): a folder, a file
-    without write permission, or a missing or unwritable folder."""
+    without write permission, a missing or unwritable folder, a name too long, a named pipe."""
+    why = not_writable(path)
+    if why and ("long" in why or "pipe" in why):
+        raise CommandError(f"{option} {path}: {why}", EXIT_USAGE)
     if os.path.isdir(path):
         raise CommandError(f"{option} {path}: is a folder", EXIT_USAGE)
     if os.path.exists(path):
@@ -72,6 +77,18 @@ def check_writable_file(path: str, option: str) -> None:
         raise CommandError(f"{option} {path}: folder {folder} does not exist", EXIT_USAGE)
     if not os.access(folder, os.W_OK | os.X_OK):
         raise CommandError(f"{option} {path}: cannot write in folder {folder}", EXIT_USAGE)
+
+
+def check_output_over_inputs(path: str, option: str, spec: Any, session: Session,
+                             extra: tuple[tuple[str, str], ...] = ()) -> None:
+    """Refuse (exit 2) an output file of the command that is, or lies inside, a file or
+    folder the graph reads, the graph file itself, or one of ``extra`` (path, what)."""
+    from ..paths import graph_files, output_clash
+
+    inputs = [(f.path, f"the input of {f.who}") for f in graph_files(spec, session.registry) if f.kind == "read"]
+    clash = output_clash(path, [*inputs, (spec.file, "the graph file"), *extra])
+    if clash:
+        raise CommandError(f"{option}: {clash}", EXIT_USAGE)
 
 
 def open_session() -> Session:
@@ -127,6 +144,9 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
     """Build and run ``spec``, show progress, print the summary, return the exit code."""
     check_speed(speed)
     net = session.build(spec)
+    bad = timer_problems(net)  # a timer that would spin over the mission's span: refused before it starts
+    if bad:
+        raise CommandError("; ".join(bad), EXIT_USAGE)
     bar = Progress(net, enabled=progress)
     try:
         summary = session.run(net, speed=speed if speed is not None else spec.speed,

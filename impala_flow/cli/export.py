@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import math
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -29,9 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from ..component import MAX_SECONDS
 from ..io import MissionReader, RecordingError
 from ..msgs import is_message
+from ..paths import not_writable, output_clash
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
+from ._common import check_writable_file
 from .info import codecs
 
 #: arrays up to this many values become columns; larger ones need --npy
@@ -158,7 +162,29 @@ def _loss_line(r: MissionReader, topic: str) -> str | None:
             "(--allow-loss exports the rest)")
 
 
+def _check_args(args: argparse.Namespace) -> None:
+    """Usage errors before the recording is read (exit 2, one line): a window that is not
+    finite seconds, outputs that cannot be written or would land on the recording."""
+    for option, value in (("--start-s", args.start_s), ("--end-s", args.end_s)):
+        if value is not None and not (math.isfinite(value) and 0 <= value <= MAX_SECONDS):
+            raise CommandError(f"{option} {value}: expected finite seconds in [0, {MAX_SECONDS:.3g}]", EXIT_USAGE)
+    if args.start_s is not None and args.end_s is not None and args.end_s <= args.start_s:
+        raise CommandError(f"--end-s {args.end_s} <= --start-s {args.start_s}: nothing to export", EXIT_USAGE)
+    inputs = [(args.file, "the recording")]
+    if args.output:
+        check_writable_file(args.output, "-o")
+        clash = output_clash(args.output, inputs)
+        if clash:
+            raise CommandError(f"-o: {clash}", EXIT_USAGE)
+    if args.npy:
+        why = not_writable(args.npy, "write_dir")
+        clash = why or output_clash(args.npy, inputs + ([(args.output, "the -o file")] if args.output else []))
+        if clash:
+            raise CommandError(f"--npy {args.npy}: {clash}", EXIT_USAGE)
+
+
 def run(args: argparse.Namespace) -> int:
+    _check_args(args)
     npy_dir = Path(args.npy) if args.npy else None
     try:
         with MissionReader(args.file, codecs()) as r:

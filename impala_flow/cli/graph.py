@@ -18,8 +18,11 @@ import networkx as nx
 from ..build import to_dot
 from ..component import Source
 from ..network import Network
-from . import EXIT_FAILED, CommandError
-from ._common import add_graph_args, load_spec, open_session
+from . import EXIT_FAILED, EXIT_USAGE, CommandError
+from ._common import add_graph_args, check_output_over_inputs, check_writable_file, load_spec, open_session
+
+#: resolution bounds of --png (a picture of a few inches: 10^5 dpi would be gigabytes)
+MIN_DPI, MAX_DPI = 10, 1200
 
 __all__ = ["add_parser", "run", "draw_png", "layout"]
 
@@ -53,11 +56,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     session = open_session()
     spec = load_spec(session, args)
-    net = session.build(spec)
+    if not MIN_DPI <= args.dpi <= MAX_DPI:  # 10^5 dpi would allocate gigabytes for the picture
+        raise CommandError(f"--dpi {args.dpi}: expected {MIN_DPI} to {MAX_DPI}", EXIT_USAGE)
     if args.png:
         out = Path(args.png)
         if not out.parent.is_dir():
             raise CommandError(f"--png {args.png}: no directory '{out.parent}'", EXIT_FAILED)
+        check_writable_file(args.png, "--png")
+        check_output_over_inputs(args.png, "--png", spec, session)
+    net = session.build(spec)
+    if args.png:
         draw_png(net, out, dpi=args.dpi)
         print(f"{out}: {len(net.components)} components, {len(net.connections)} connections", file=sys.stderr)
     if args.dot or not args.png:

@@ -10,7 +10,14 @@ from ..io import MissionReader, RecordingError
 from ..summary import RunSummary
 from ..yamlloc import YamlError
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._common import add_graph_args, open_session, parse_vars, run_network
+from ._common import (
+    add_graph_args,
+    check_output_over_inputs,
+    check_writable_file,
+    open_session,
+    parse_vars,
+    run_network,
+)
 
 REPLAYER = "io.Replayer"
 
@@ -63,12 +70,9 @@ def run(args: argparse.Namespace) -> int:
         spec = session.load(args.graph, overrides, variables)
     except (GraphError, YamlError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
-    if args.summary_json:
-        try:
-            open(args.summary_json, "a", encoding="utf-8").close()
-        except OSError as e:
-            raise CommandError(f"--summary-json {args.summary_json}: cannot write ({e.strerror})", EXIT_USAGE) \
-                from None
+    if args.summary_json:  # checked without creating it (a named pipe would block open())
+        check_writable_file(args.summary_json, "--summary-json")
+        check_output_over_inputs(args.summary_json, "--summary-json", spec, session, ((args.file, "the recording"),))
 
     def report(summary: RunSummary) -> None:  # the LOST lines are in summary.format()
         if args.summary_json:

@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._common import add_graph_args, check_speed, check_writable_file, load_spec, open_session, run_network
+from ._common import (
+    add_graph_args,
+    check_output_over_inputs,
+    check_speed,
+    check_writable_file,
+    load_spec,
+    open_session,
+    run_network,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
         check_writable_file(args.summary_json, "--summary-json")
     session = open_session()
     spec = load_spec(session, args)
+    if args.summary_json:
+        check_output_over_inputs(args.summary_json, "--summary-json", spec, session)
 
     def write(summary):  # type: ignore[no-untyped-def]
         if args.summary_json:

@@ -7,8 +7,9 @@ import json
 import sys
 from pathlib import Path
 
+from ..paths import not_writable
 from ..schema import graph_schema
-from . import EXIT_FAILED, CommandError
+from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from ._common import open_session
 
 __all__ = ["add_parser", "run"]
@@ -48,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
     schema = graph_schema(registry)
     text = json.dumps(schema, indent=2) + "\n"
     if args.output:
+        why = not_writable(args.output)
+        if why:
+            raise CommandError(f"-o {args.output}: {why}", EXIT_USAGE)
         try:
             Path(args.output).write_text(text, encoding="utf-8")
         except OSError as e:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..executor import timer_problems
+from . import EXIT_USAGE, CommandError
 from ._common import add_graph_args, load_spec, open_session
 
 
@@ -23,6 +25,9 @@ def run(args: argparse.Namespace) -> int:
     session = open_session()
     spec = load_spec(session, args)
     net = session.build(spec)
+    bad = timer_problems(net)  # as run does: a timer that would spin over the mission's span
+    if bad:
+        raise CommandError("; ".join(bad), EXIT_USAGE)
     print(f"{args.graph}: ok - graph '{spec.name}', {len(net.components)} components, "
           f"{len(net.connections)} connections, clock {spec.clock_mode} at speed {spec.speed}")
     return 0

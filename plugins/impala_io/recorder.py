@@ -38,8 +38,9 @@ class Recorder(Component):
                      "in Foxglove schemas on /foxglove/<topic>")
     json_views = Param(bool, default=True, doc="and every other stream as JSON there (generic MCAP tools, "
                        "Foxglove's Plot panel; needs foxglove)")
-    chunk_size = Param(int, default=1 << 20, ge=1024, doc="bytes per chunk before compression")
-    maxsize = Param(int, default=4096, ge=1, doc="samples queued per input before blocking")
+    chunk_size = Param(int, default=1 << 20, ge=1024, le=1 << 28,
+                       doc="bytes per chunk before compression (the writer holds at most one chunk)")
+    maxsize = Param(int, default=4096, ge=1, le=1 << 16, doc="samples queued per input before blocking")
     flush_period_s = Param(float, default=1.0, ge=0.0,
                            doc="also close a chunk every this many wall seconds (crash safety of slow "
                            "streams); 0: by size only, so the same samples give the same bytes")

@@ -63,7 +63,7 @@ class Replayer(Source):
     recording replays what it holds. Messages a damaged chunk held are never silent: they
     are counted per output (``summary()["lost"]``, from the file's message indexes) with the
     time ranges missing (``summary()["lost_ranges_s"]``, seconds from the first sample), and
-    logged as a warning; a ``start_s`` past the end of the recording warns too.
+    logged as a warning. A ``start_s`` past the end of the recording is refused when the run starts.
     """
 
     path = Param(str, path="read", doc="MCAP recording")
@@ -104,9 +104,9 @@ class Replayer(Source):
             self.log.warning("%s", f"{self.path}: truncated recording, replaying the "
                                    f"{info.recovered_count} messages recovered")
         if info.start_ns is not None and info.end_ns is not None \
-                and self.start_s * 1e9 > info.end_ns - info.start_ns:
-            self.log.warning("%s", f"{self.path}: start_s={self.start_s} is past the end of the recording "
-                                   f"({info.duration_s:.3f} s): nothing to replay")
+                and self.start_s * 1e9 > info.end_ns - info.start_ns:  # before anything runs
+            raise ValueError(f"{self.path}: start_s {self.start_s} is past the end of the recording "
+                             f"({info.duration_s:.3f} s): nothing would be replayed")
         self.replayed = 0
         self.jumps: list[int] = []
 

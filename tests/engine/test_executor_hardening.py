@@ -356,17 +356,17 @@ def test_on_error_skip_logs_the_first_skips_then_counts(executor, caplog: pytest
 
 class Huge(Source):
     out = Output(float)
-    t_ns = Param(int, default=1 << 63)
+    stamp = Param(int, default=1 << 63)  # not named *_ns: a *_ns parameter out of int64 is refused sooner
 
     def generate(self):
         yield 0, "out", 0.0
-        yield self.t_ns, "out", 1.0
+        yield self.stamp, "out", 1.0
 
 
 @pytest.mark.parametrize("executor", [OfflineExecutor, RealTimeExecutor])
 @pytest.mark.parametrize("t_ns", [1 << 63, -(1 << 63) - 1])
 def test_timestamps_outside_int64_are_refused_at_the_source(executor, t_ns: int) -> None:
-    net = _net(Huge("radar", t_ns=t_ns), CollectingSink("sink"), connections=["radar.out -> sink.x"])
+    net = _net(Huge("radar", stamp=t_ns), CollectingSink("sink"), connections=["radar.out -> sink.x"])
     with pytest.raises(ComponentError) as ei:
         executor(net).run()
     assert str(ei.value).startswith(f"component 'radar', in generate(): OverflowError: yielded t={t_ns} ns on "
@@ -375,7 +375,7 @@ def test_timestamps_outside_int64_are_refused_at_the_source(executor, t_ns: int)
 
 def test_the_largest_int64_timestamp_is_accepted() -> None:
     sink = CollectingSink("sink")
-    net = _net(Huge("radar", t_ns=(1 << 63) - 1), sink, connections=["radar.out -> sink.x"])
+    net = _net(Huge("radar", stamp=(1 << 63) - 1), sink, connections=["radar.out -> sink.x"])
     OfflineExecutor(net).run()
     assert sink.times() == [0, (1 << 63) - 1]
 

@@ -160,9 +160,14 @@ def test_replay_of_a_bad_file_exits_1_with_one_line(tmp_path: Path, capsys: pyte
     assert "a directory" in capsys.readouterr().err
 
 
-def test_replay_start_past_the_end_warns(mission: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    assert main(["replay", str(mission), str(_graph(tmp_path)), "--no-progress", "--set", "mission.start_s=5"]) == 0
-    assert any("past the end of the recording" in r.getMessage() for r in caplog.records)
+def test_replay_start_past_the_end_is_refused(mission: Path, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    # the mission spans (N - 1) ms: a start 5 s after its first sample replays nothing
+    assert main(["replay", str(mission), str(_graph(tmp_path)), "--no-progress", "--set", "mission.start_s=5"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"impala-flow replay: error: component 'mission', in start(): ValueError: {mission}: "
+                       f"start_s 5.0 is past the end of the recording ({(N - 1) / 1000:.3f} s): nothing would be "
+                       "replayed")
 
 
 def test_info_lists_attachments_and_mirrors_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -85,7 +85,9 @@ metrics: [{", ".join(METRICS)}]
     rows = {r["slam.search_m"]: r for r in read_rows(out)}
     bad = rows["-1.0"]
     assert bad["status"] == "failed" and bad["eval.ate_rmse_m"] == ""
-    assert bad["error"] == f"{GRAPH}:15:37: component 'slam' (slam.RSlam): parameter 'search_m': -1.0 must be > 0"
+    # the variant's value reaches the graph as a --set, which the error names (engine, issue 24)
+    assert bad["error"] == ("--set slam.search_m=-1.0: component 'slam' (slam.RSlam): parameter 'search_m': "
+                            "-1.0 must be > 0")
     assert rows["1.0"]["status"] == rows["2.0"]["status"] == "ok"
     assert f"- `{bad['task']}`: {bad['error']}" in (out / "summary.md").read_text(encoding="utf-8")
     before = read_rows(out)
