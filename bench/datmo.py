@@ -40,7 +40,7 @@ def simulate(args: tuple[str, int, str]) -> str:
     scenario, seed, out = args
     from impala_flow.cli import main
 
-    if main(["simulate", scenario, "-o", out, "--seed", str(seed)]) != 0:
+    if main(["simulate", scenario, "-o", out, "--seed", str(seed), "--overwrite"]) != 0:
         raise RuntimeError(f"simulate {scenario} seed {seed} failed")
     return out
 

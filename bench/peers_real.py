@@ -175,7 +175,8 @@ def main() -> int:
                 if not src.is_dir():
                     print(f"radiate: no {src}: skipped")
                     continue
-                subprocess.run(CLI + ["import", "radiate", str(src), "-o", str(mission), "--no-progress"],
+                subprocess.run(CLI + ["import", "radiate", str(src), "-o", str(mission), "--no-progress",
+                                      "--overwrite"],
                                check=True, capture_output=True)
         else:
             src = DATA / "oxford-radar-robotcar-sample"
@@ -183,7 +184,7 @@ def main() -> int:
                 print(f"oxford: no {src}: skipped")
                 continue
             mission = folder / "oxford-sample.mcap"
-            subprocess.run(CLI + ["import", "oxford", str(src), "-o", str(mission), "--no-progress"],
+            subprocess.run(CLI + ["import", "oxford", str(src), "-o", str(mission), "--no-progress", "--overwrite"],
                            check=True, capture_output=True)
         res = run_mission(name, mission.resolve(), folder, args.kiss_k)
         print(f"{name} ({mission}):")

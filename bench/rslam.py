@@ -161,7 +161,7 @@ def run_oxford(report: str) -> dict:
     out = Path(report + "-oxford")
     out.mkdir(parents=True, exist_ok=True)
     mission = out / "oxford-sample.mcap"
-    cli(["import", "oxford", str(folder), "-o", str(mission), "--no-progress"])
+    cli(["import", "oxford", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
     t0 = time.perf_counter()
     cli(["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
          "--no-progress", "--summary-json", str(out / "summary.json")])
@@ -196,7 +196,7 @@ def run_radiate(report: str) -> dict:
     out = Path(report + "-radiate")
     out.mkdir(parents=True, exist_ok=True)
     mission = out / "radiate-fog_6_0-head.mcap"
-    cli(["import", "radiate", str(folder), "-o", str(mission), "--no-progress"])
+    cli(["import", "radiate", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
     cli(["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
          "--no-progress"])
     with MissionReader(out / "oxford.mcap") as r:

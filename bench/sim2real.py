@@ -148,12 +148,12 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     real_mission, sim_mission = out / "oxford-sample.mcap", out / "urban.mcap"
-    cli(["import", "oxford", str(folder), "-o", str(real_mission), "--no-progress"])
+    cli(["import", "oxford", str(folder), "-o", str(real_mission), "--no-progress", "--overwrite"])
     n_scans = len(turns_of(real_mission))
     window_s = n_scans / 4.0 + 0.3
     t0 = time.perf_counter()
     cli(["simulate", args.scenario, "-o", str(sim_mission), "--duration", f"{args.start_s + window_s + 0.2:.2f}s",
-         "--seed", str(args.seed), "--no-progress"])
+         "--seed", str(args.seed), "--no-progress", "--overwrite"])
     sim_wall = time.perf_counter() - t0
     real = run_graph(real_mission, out / "real")
     sim = run_graph(sim_mission, out / "sim", "--var", "truth=gps/pose", "--set", f"mission.start_s={args.start_s}",
