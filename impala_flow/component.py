@@ -80,7 +80,7 @@ class Param:
     lists the accepted values. Without a default the parameter is required.
 
     ``path`` marks a ``str`` parameter that names a file or folder (see :data:`PATH_KINDS`):
-    ``"read"`` a file the component reads, ``"write"`` a file it writes, ``"write_dir"`` a
+    ``"read"`` a file (or folder) the component reads, ``"write"`` a file it writes, ``"write_dir"`` a
     folder it writes into, ``"read_or_name"`` either a built-in name or a file it reads (a
     value with a '/' or a file suffix is a file). In a graph, a relative path is resolved
     against the folder of the graph file it is written in (the working directory for a

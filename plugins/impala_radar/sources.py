@@ -54,7 +54,7 @@ class _NavtechFolderScans(Source):
     command prints it); bad input raises :class:`~impala_radar.datasets.DatasetError`."""
 
     format = ""
-    folder = Param(str, doc="dataset folder")
+    folder = Param(str, path="read", doc="dataset folder (relative: to the graph file's folder)")
     azimuth_offset_deg = Param(float, default=0.0, ge=-360.0, le=360.0, doc="constant added to every beam azimuth, "
                                "counter-clockwise positive (a positive offset turns the scan to the left)")
     range_offset_bins = Param(float, default=0.5, ge=-RANGE_OFFSET_MAX_BINS, le=RANGE_OFFSET_MAX_BINS,
