@@ -23,8 +23,8 @@ def test_folder_is_resolved_against_the_graph_file(tmp_path, monkeypatch, capsys
     (tmp_path / "graphs").mkdir()
     graph = tmp_path / "graphs" / "scans.yaml"
     graph.write_text(GRAPH.format(out="../out/scans.mcap"))
-    elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
+    elsewhere = tmp_path / "a" / "b"
+    elsewhere.mkdir(parents=True)
     monkeypatch.chdir(elsewhere)  # ../data from here does not exist: only the graph's folder finds it
     assert main(["run", str(graph), "--no-progress"]) == 0, capsys.readouterr().err
     with open(tmp_path / "out" / "scans.mcap", "rb") as f:
