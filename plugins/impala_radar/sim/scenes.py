@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .world import Route, World, WorldBuilder
+from .world import Route, World, WorldBuilder, distance_to_polyline
 
 __all__ = ["beynes", "campus", "semi_urban", "datmo", "urban", "SCENES"]
 
@@ -37,11 +37,9 @@ def _polyline_length(p: np.ndarray) -> float:
 
 def _away_from(rng, n, rect, route_xy, clearance_m):
     """``n`` uniform points in ``rect`` at least ``clearance_m`` from the route polyline."""
-    from .world import _distance_to_polyline
-
     x0, y0, x1, y1 = rect
     xy = np.column_stack([rng.uniform(x0, x1, 3 * n), rng.uniform(y0, y1, 3 * n)])
-    return xy[_distance_to_polyline(xy, route_xy) > clearance_m][:n]
+    return xy[distance_to_polyline(xy, route_xy) > clearance_m][:n]
 
 
 def _extent(route_xy: np.ndarray, margin: float = _MARGIN_M):

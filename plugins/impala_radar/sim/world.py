@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["KIND", "VEGETATION_KINDS", "Mover", "Route", "World", "WorldBuilder", "car_discs",
+__all__ = ["KIND", "VEGETATION_KINDS", "Mover", "Route", "World", "WorldBuilder", "car_discs", "distance_to_polyline",
            "disc_transmission"]
 
 KIND = {"grass": 0, "bush": 1, "tree": 2, "wall": 3, "metal": 4, "road": 5, "car": 6,
@@ -319,7 +319,7 @@ class WorldBuilder:
             elif what == "disc":
                 out |= np.hypot(xy[:, 0] - p[0], xy[:, 1] - p[1]) <= p[2]
             else:  # corridor: polyline p[0] of half-width p[1]
-                out |= _distance_to_polyline(xy, p[0]) <= p[1]
+                out |= distance_to_polyline(xy, p[0]) <= p[1]
         return out
 
     def exclude_rect(self, rect) -> None:
@@ -333,7 +333,7 @@ class WorldBuilder:
         """Asphalt (low return) along a polyline; no grass grows on it afterwards."""
         pl = np.asarray(polyline, float)
         xy, centre = self._tiles(pl.min(0) - width_m, pl.max(0) + width_m, density_pm2)
-        keep = _distance_to_polyline(xy, pl) <= width_m / 2
+        keep = distance_to_polyline(xy, pl) <= width_m / 2
         xy, centre = xy[keep], centre[keep]
         self.points(xy, 0.0, np.full(len(xy), _db(sigma0_db) / density_pm2), "road",
                     1.0 / density_pm2, centre)
@@ -417,7 +417,7 @@ class WorldBuilder:
                      seg, list(self.movers), cols[6], cols[7], cols[8], discs)
 
 
-def _distance_to_polyline(xy: np.ndarray, polyline: np.ndarray, chunk: int = 20000):
+def distance_to_polyline(xy: np.ndarray, polyline: np.ndarray, chunk: int = 20000):
     """Distance of each point to the nearest segment of a polyline (vectorised)."""
     # hand-written (shapely could): one numpy pass over points x segments, no new dependency
     a, b = polyline[:-1], polyline[1:]
@@ -429,15 +429,3 @@ def _distance_to_polyline(xy: np.ndarray, polyline: np.ndarray, chunk: int = 200
         t = np.clip(np.einsum("nij,ij->ni", p, d) / dd, 0.0, 1.0)
         out[i:i + chunk] = np.hypot(*np.moveaxis(p - t[..., None] * d, -1, 0)).min(axis=1)
     return out
-
-
-_SCENES = ("beynes", "campus", "semi_urban", "datmo", "SCENES")
-
-
-def __getattr__(name: str):
-    """The scenario builders live in :mod:`impala_radar.sim.scenes` (module size)."""
-    if name in _SCENES:
-        from . import scenes
-
-        return getattr(scenes, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
