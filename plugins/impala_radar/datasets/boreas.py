@@ -59,7 +59,7 @@ from .common import (
     time_steps_back,
     unix_times_ns,
 )
-from .oxford import NavtechPngDataset
+from .navtech_folder import NavtechPngDataset, timestamped_pngs
 
 __all__ = ["BOREAS_RESOLUTION_SWITCH_S", "BOREAS_RANGE_OFFSET_M", "BoreasDataset", "boreas_range_resolution_m",
            "read_boreas_poses",
@@ -121,7 +121,6 @@ class BoreasDataset(NavtechPngDataset):
 
     def __init__(self, folder: str | Path, range_resolution_m: float = 0.0, azimuth_offset_deg: float = 0.0,
                  range_offset_bins: float | None = None, report: ImportReport | None = None) -> None:
-        from .oxford import timestamped_pngs
 
         range_resolution_m = check_option("range_resolution_m", range_resolution_m, 0.0, RANGE_RESOLUTION_MAX_M,
                                           "m")
