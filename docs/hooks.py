@@ -4,8 +4,10 @@
   ``impala-flow COMMAND --help``. A command listed by ``impala-flow --help`` without a marker, or a
   marker naming no command, is a build error: the page cannot fall behind the command line.
 * ``docs/reference.md``: the ``<!-- impala-flow-components -->`` marker becomes the reference of
-  every component of the plugins shipped in this repository, from ``impala-flow plugins --json``
-  (the declarations the engine validates graphs against). A broken plugin is a warning, so
+  every component of the plugins shipped in this repository (the ``impala-flow`` distribution's, or
+  modules inside this tree; another installed plugin, such as the tests' example, is left out), from
+  ``impala-flow plugins --json`` (the declarations the engine validates graphs against) and the first
+  paragraph of each component's docstring. A broken plugin is a warning, so
   ``mkdocs build --strict`` fails.
 
 Both run the installed ``impala-flow`` console script once, in a subprocess, at the start of a build.
@@ -71,7 +73,9 @@ for p in plugins["plugins"]:
         origins[p["module"]] = spec.origin if spec else None
     except Exception:
         origins[p["module"]] = None
-print(json.dumps({"commands": commands, "help": helps, "plugins": plugins, "origins": origins, "docs": docs}))
+dists = {ep.value: ep.dist.name if ep.dist else None for ep in entry_points(group="impala_flow")}
+facts = {"dists": dists, "commands": commands, "help": helps, "plugins": plugins, "origins": origins, "docs": docs}
+print(json.dumps(facts))
 """
 
 _facts: dict[str, Any] | None = None
@@ -186,9 +190,10 @@ def _reference(root: Path) -> str:
     assert _facts is not None
     data, origins = _facts["plugins"], _facts["origins"]
 
-    def ours(module: str) -> bool:
+    def ours(module: str) -> bool:  # shipped by this repository: its distribution, or a module in its tree
         origin = origins.get(module)
-        return bool(origin) and Path(origin).resolve().is_relative_to(root)
+        inside = bool(origin) and Path(origin).resolve().is_relative_to(root)
+        return inside or _facts["dists"].get(module) == "impala-flow"
 
     plugins = [p for p in data["plugins"] if ours(p["module"])]
     if not plugins:
