@@ -24,6 +24,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mkdocs.exceptions import PluginError
+
 log = logging.getLogger("mkdocs.hooks.impala_flow")
 
 HELP_MARK = re.compile(r"<!--\s*impala-flow-help:\s*([\w-]+)\s*-->")
@@ -85,7 +87,7 @@ def _load(root: Path) -> dict[str, Any]:
     env = dict(os.environ, COLUMNS="100", PYTHONWARNINGS="ignore")
     res = subprocess.run([sys.executable, "-c", _RUNNER], capture_output=True, text=True, env=env, cwd=root)
     if res.returncode != 0:
-        raise RuntimeError(f"docs/hooks.py: running impala-flow failed: {res.stderr.strip()[-2000:]}")
+        raise PluginError(f"docs/hooks.py: running impala-flow failed: {res.stderr.strip()[-2000:]}")
     for line in res.stderr.splitlines():
         if "WARNING" in line or "ERROR" in line:
             log.warning("impala-flow said while the docs were built: %s", line.strip())
@@ -120,7 +122,7 @@ def _cli(markdown: str) -> str:
     missing = [c for c in commands if c not in marked]
     unknown = [c for c in marked if c != "main" and c not in commands]
     if missing or unknown:
-        raise RuntimeError(f"docs/cli.md is stale: commands without a section {missing}, "
+        raise PluginError(f"docs/cli.md is stale: commands without a section {missing}, "
                            f"sections naming no command {unknown} (impala-flow --help lists {commands})")
 
     def sub(m: re.Match[str]) -> str:
@@ -197,7 +199,7 @@ def _reference(root: Path) -> str:
 
     plugins = [p for p in data["plugins"] if ours(p["module"])]
     if not plugins:
-        raise RuntimeError("docs/hooks.py: impala-flow plugins --json lists none of this repository's plugins")
+        raise PluginError("docs/hooks.py: impala-flow plugins --json lists none of this repository's plugins")
     for b in data.get("broken", []):
         log.warning("plugin %s is broken, its components are missing from the reference: %s",
                     b.get("name"), b.get("error"))
