@@ -3,6 +3,8 @@
 * ``docs/cli.md``: each ``<!-- impala-flow-help: COMMAND -->`` marker becomes the output of
   ``impala-flow COMMAND --help``. A command listed by ``impala-flow --help`` without a marker, or a
   marker naming no command, is a build error: the page cannot fall behind the command line.
+* ``docs/getting-started.md``: ``<!-- impala-flow-readme-commands -->`` becomes the README's first
+  fenced code block (the two set-up commands CI runs), so the page always shows the same commands.
 * ``docs/reference.md``: the ``<!-- impala-flow-components -->`` marker becomes the reference of
   every component of the plugins shipped in this repository (the ``impala-flow`` distribution's, or
   modules inside this tree; another installed plugin, such as the tests' example, is left out), from
@@ -30,6 +32,7 @@ log = logging.getLogger("mkdocs.hooks.impala_flow")
 
 HELP_MARK = re.compile(r"<!--\s*impala-flow-help:\s*([\w-]+)\s*-->")
 COMPONENTS_MARK = "<!-- impala-flow-components -->"
+README_MARK = "<!-- impala-flow-readme-commands -->"
 
 # Runs in a subprocess: calls the `impala-flow` console script's function for each argv and
 # prints {"commands": [...], "help": {cmd: text}, "plugins": <plugins --json>, "origins": {module: file},
@@ -105,10 +108,19 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     name = page.file.src_uri
     if name == "cli.md":
         return _cli(markdown)
+    if README_MARK in markdown:
+        markdown = markdown.replace(README_MARK, _readme_commands(Path(config["config_file_path"]).resolve().parent))
     if name == "reference.md":
         root = Path(config["config_file_path"]).resolve().parent
         return markdown.replace(COMPONENTS_MARK, _reference(root))
     return markdown
+
+
+def _readme_commands(root: Path) -> str:
+    m = re.search(r"^```.*?^```", (root / "README.md").read_text(encoding="utf-8"), flags=re.M | re.S)
+    if not m:
+        raise PluginError("docs/hooks.py: README.md has no fenced code block (the set-up commands)")
+    return m.group(0)
 
 
 def _code(text: str) -> str:
