@@ -12,7 +12,11 @@
   paragraph of each component's docstring. A broken plugin is a warning, so
   ``mkdocs build --strict`` fails.
 
-Both run the installed ``impala-flow`` console script once, in a subprocess, at the start of a build.
+Every page and the README are checked too: a component type (``plugin.Class``) or a command
+(`` `impala-flow CMD``) they name must exist, else a warning (a failure with ``--strict``).
+
+All of it comes from running the installed ``impala-flow`` console script once, in a subprocess,
+at the start of a build.
 """
 
 from __future__ import annotations
@@ -103,9 +107,15 @@ def on_config(config: Any) -> Any:
     return config
 
 
+def on_pre_build(config: Any) -> None:
+    root = Path(config["config_file_path"]).resolve().parent
+    _check_names("README.md", (root / "README.md").read_text(encoding="utf-8"))
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     assert _facts is not None
     name = page.file.src_uri
+    _check_names(f"docs/{name}", markdown)
     if name == "cli.md":
         return _cli(markdown)
     if README_MARK in markdown:
@@ -114,6 +124,19 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         root = Path(config["config_file_path"]).resolve().parent
         return markdown.replace(COMPONENTS_MARK, _reference(root))
     return markdown
+
+
+def _check_names(page: str, markdown: str) -> None:
+    """A component type or a command a page names must exist: a warning (a failure with --strict)."""
+    assert _facts is not None
+    plugins = {p["name"] for p in _facts["plugins"]["plugins"]}
+    types = {c["type"] for p in _facts["plugins"]["plugins"] for c in p["components"]}
+    for m in sorted(set(re.findall(r"\b([a-z_]+)\.([A-Z]\w*)\b", markdown))):
+        if m[0] in plugins and ".".join(m) not in types:
+            log.warning("%s names the component type %s, which no installed plugin declares", page, ".".join(m))
+    for cmd in sorted(set(re.findall(r"`impala-flow ([a-z][\w-]*)", markdown))):
+        if cmd not in _facts["commands"]:
+            log.warning("%s names the command 'impala-flow %s', which impala-flow --help does not list", page, cmd)
 
 
 def _readme_commands(root: Path) -> str:
