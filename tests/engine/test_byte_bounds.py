@@ -20,14 +20,14 @@ from impala_flow import Component, Input, OutOfHistory, Output, Param, Source
 from impala_flow.executor import OfflineExecutor
 from impala_flow.network import Network
 from impala_flow.ports import DEFAULT_MAXBYTES, data_nbytes
-from impala_flow.runtime import RealTimeExecutor
 from impala_flow.summary import ComponentError, RunSummary
 from impala_flow.testing import CollectingSink, connect
+
+from .test_runtime import HANG_S, run_rt
 
 MIB = 1 << 20
 MS = 1_000_000
 N_MIB = MIB // 8  # float64 elements of a 1 MiB array
-HANG_S = 60.0
 
 
 def mib_array(i: int) -> np.ndarray:
@@ -205,19 +205,6 @@ class Slow(Component):
             assert self.gate.wait(HANG_S)
         time.sleep(self.sleep_s)
         self.got.append(float(self.x.take()[0]))
-
-
-def run_rt(net: Network) -> RunSummary:
-    box: dict[str, Any] = {}
-    ex = RealTimeExecutor(net)
-    th = threading.Thread(target=lambda: box.setdefault("summary", ex.run()), daemon=True)
-    th.start()
-    th.join(HANG_S)
-    if th.is_alive():
-        ex.stop_event.set()
-        th.join(10)
-        pytest.fail(f"real-time run did not end within {HANG_S} s")
-    return box["summary"]
 
 
 def test_real_time_block_by_bytes_makes_the_producer_wait_and_loses_nothing() -> None:

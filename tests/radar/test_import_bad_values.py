@@ -22,6 +22,7 @@ from impala_radar.datasets.radiate import RadiateDataset
 from impala_radar.sources import OxfordScans
 
 from ._dataset_files import ROW_US, navtech_folder, navtech_png, radiate_folder, radiate_gps
+from ._import_cli import import_block, refused
 
 TURN_US = 400 * ROW_US  # 0.25 s
 P_NS = 250_000_000
@@ -30,30 +31,13 @@ GT_HEADER = ("source_timestamp,destination_timestamp,x,y,z,roll,pitch,yaw,source
              "destination_radar_timestamp")
 
 
-def _fails(fmt, folder, capsys, *extra, code=1):
-    out = folder.parent / f"{folder.name}-out.mcap"
-    got = main(["import", fmt, str(folder), "-o", str(out), "--no-progress", *extra])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert got == code and len(err) == 1, (got, err)
-    assert not out.exists() and not list(folder.parent.glob(f".{out.name}*"))
-    return err[0]
-
-
 def _imports(fmt, folder, capsys, *extra):
     out = folder.parent / f"{folder.name}-ok.mcap"
     assert main(["import", fmt, str(folder), "-o", str(out), "--no-progress", *extra]) == 0
     text = capsys.readouterr().out
     with MissionReader(out) as r:
         beams = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
-    block = {k.strip(): v.strip() for k, _, v in (ln.partition(":") for ln in text.splitlines()) if v}
-    return beams, block
-
-
-@pytest.fixture
-def folder(tmp_path):
-    d = tmp_path / "data"
-    d.mkdir()
-    return d
+    return beams, import_block(text)
 
 
 # ---------------------------------------------------------------- numeric options
@@ -76,7 +60,7 @@ def test_a_numeric_option_out_of_bounds_is_one_usage_line_naming_it(folder, caps
         radiate_folder(folder, ["100.0", "100.25"])
     else:
         navtech_folder(folder, n_scans=2)
-    assert _fails(fmt, folder, capsys, f"{option}={value}", code=2).endswith(f"error: {option}: {says}")
+    assert refused(fmt, folder, capsys, f"{option}={value}", code=2).endswith(f"error: {option}: {says}")
 
 
 def test_api_users_get_the_same_checks(folder):
@@ -131,13 +115,13 @@ def test_oxford_truth_step_no_vehicle_makes(folder, capsys):
     rows = _gt_rows(stamps)
     rows[1] = rows[1].replace(",2.0,", ",1e308,")
     path = _gt(folder, rows)
-    line = _fails("oxford", folder, capsys)
+    line = refused("oxford", folder, capsys)
     assert line.endswith(f"{path}: row 3: x 1e308 m, y 0.0 m, yaw 0.0 rad over 0.250 s: more than 100 m/s (+1 m) "
                          "or half a turn between two scans")
     rows = _gt_rows(stamps)
     rows[2] = rows[2].replace(",0.0,0.0,0.0,0.0,0.0,", ",0.0,0.0,0.0,0.0,7.0,")  # yaw 7 rad in a quarter second
     _gt(folder, rows)
-    assert "row 4: x 2.0 m, y 0.0 m, yaw 7.0 rad" in _fails("oxford", folder, capsys)
+    assert "row 4: x 2.0 m, y 0.0 m, yaw 7.0 rad" in refused("oxford", folder, capsys)
 
 
 def test_oxford_truth_time_against_its_scan_time(folder, capsys):
@@ -145,7 +129,7 @@ def test_oxford_truth_time_against_its_scan_time(folder, capsys):
     rows = _gt_rows(stamps)
     rows[0] = "0," + rows[0].split(",", 1)[1]  # source_timestamp zeroed, the radar's time kept
     path = _gt(folder, rows)
-    line = _fails("oxford", folder, capsys)
+    line = refused("oxford", folder, capsys)
     assert line.startswith(f"impala-flow import: error: {path}: row 2: source_timestamp 0 is -1.7e+09 s from "
                            f"source_radar_timestamp {stamps[0]}")
 
@@ -156,12 +140,12 @@ def test_oxford_row_times_zeroed_while_the_names_say_2019(folder, capsys):
     t0 = 1_547_131_046_353_776  # 2019-01-10, the sample's first scan
     paths = navtech_folder(folder, n_scans=3, t0_us=t0)
     navtech_png(paths[1], int(paths[1].stem), times_us=np.zeros(400, np.int64))
-    line = _fails("oxford", folder, capsys)
+    line = refused("oxford", folder, capsys)
     assert line.endswith(f"{paths[1]}: row 0: time 0 ns is -1.54713e+09 s from the file name's "
                          f"{int(paths[1].stem) // 10**6}.{int(paths[1].stem) % 10**6:06d}000 s (rows within 1 s of "
                          "it): the row times and the scan's name disagree")
     navtech_png(paths[0], t0, times_us=t0 + 86_400_000_000 + ROW_US * np.arange(400))  # the first: a day later
-    assert f"{paths[0]}: row 0: time {(t0 + 86_400_000_000) * 1000} ns is +86400 s from" in _fails("boreas", folder,
+    assert f"{paths[0]}: row 0: time {(t0 + 86_400_000_000) * 1000} ns is +86400 s from" in refused("boreas", folder,
                                                                                                    capsys)
 
 
@@ -170,7 +154,7 @@ def test_navtech_scans_faster_than_the_sensor_turns(folder, capsys):
     for k in range(6):
         t = 1_700_000_000_000_000 + k * 50_000
         navtech_png(folder / "radar" / f"{t}.png", t, times_us=t + 125 * np.arange(400))
-    line = _fails("oxford", folder, capsys)
+    line = refused("oxford", folder, capsys)
     assert line.endswith(f"{folder / 'radar'}: 6 scan(s) 1700000000000000.png-1700000000250000.png: one turn "
                          "every 0.0500 s (20.0 Hz): faster than the Navtech turns (0.25 s, 4 Hz; at least 0.2 s)")
 
@@ -179,7 +163,7 @@ def test_navtech_mission_spanning_days_is_refused(folder, capsys):
     paths = navtech_folder(folder, n_scans=3)
     late = int(paths[-1].stem) + 10 * 86_400_000_000
     navtech_png(folder / "radar" / f"{late}.png", late)
-    line = _fails("oxford", folder, capsys)
+    line = refused("oxford", folder, capsys)
     assert line.endswith(f"{folder / 'radar'} (scan names): times span {(late - 1_700_000_000_000_000) / 1e6:.0f} s "
                          "(10.0 days, from "
                          f"1700000000.000000000 to {late // 10**6}.{late % 10**6:06d}000 s): more than one recording "
@@ -205,7 +189,7 @@ def test_boreas_poses_out_of_range(folder, capsys, k, field, value, says):
             for i, s in enumerate(stamps)]
     rows[k][field] = value
     path = _boreas(folder, [",".join(r) for r in rows])
-    assert _fails("boreas", folder, capsys).endswith(f"{path}: {says}")
+    assert refused("boreas", folder, capsys).endswith(f"{path}: {says}")
 
 
 # ---------------------------------------------------------------- RADIATE values
@@ -213,7 +197,7 @@ def test_boreas_poses_out_of_range(folder, capsys, k, field, value, says):
 def test_radiate_frames_faster_than_the_sensor_turns(folder, capsys):
     """6 turns in 0.25 s (frames 50 ms apart): refused, naming the index and the rate."""
     radiate_folder(folder, [T0_NS + k * 50_000_000 for k in range(6)], rows=4, cols=8)
-    assert _fails("radiate", folder, capsys).endswith(
+    assert refused("radiate", folder, capsys).endswith(
         f"{folder / 'Navtech_Polar.txt'}: lines 1-6, 6 frames in 0.250 s: one turn every 0.0500 s (20.0 Hz): faster "
         "than the Navtech turns (0.25 s, 4 Hz; at least 0.2 s)")
 
@@ -239,7 +223,7 @@ def test_radiate_clock_jumps_beyond_the_quirks(folder, capsys, shift_ns, says):
     t[5:] = [x + shift_ns for x in t[5:]]
     radiate_folder(folder, t, rows=4, cols=8)
     ts = f"{t[5] // 10**9}.{t[5] % 10**9:09d}"
-    assert says.format(t=ts) in _fails("radiate", folder, capsys)
+    assert says.format(t=ts) in refused("radiate", folder, capsys)
 
 
 def _radiate_with_gps(folder):
@@ -273,7 +257,7 @@ def test_radiate_gps_field_out_of_range(folder, capsys, line, says):
         parts[2] = "nan"
     lines[line] = ", ".join(parts)
     paths[21].write_text("\n".join(lines) + "\n")
-    assert _fails("radiate", folder, capsys, "--gps-offset-s", "0").endswith(f"{paths[21]}: {says}")
+    assert refused("radiate", folder, capsys, "--gps-offset-s", "0").endswith(f"{paths[21]}: {says}")
 
 
 def test_radiate_gps_position_jump_faster_than_a_vehicle(folder, capsys):
@@ -284,7 +268,7 @@ def test_radiate_gps_position_jump_faster_than_a_vehicle(folder, capsys):
         lat, rest = lines[0].split(", ", 1)
         lines[0] = f"{float(lat) + 0.045!r}, {rest}"
         p.write_text("\n".join(lines) + "\n")
-    line = _fails("radiate", folder, capsys, "--gps-offset-s", "0")
+    line = refused("radiate", folder, capsys, "--gps-offset-s", "0")
     assert "GPS_IMU_Twist/0000" in line and "m/s over the 1 s around this fix: faster than 100 m/s" in line
 
 
@@ -311,7 +295,7 @@ def test_oxford_ground_truth_file_that_is_no_csv(folder, capsys, content, says):
         path.write_bytes(content)
     else:
         path.write_text(content)
-    assert f"error: {path}: {says}" in _fails("oxford", folder, capsys)
+    assert f"error: {path}: {says}" in refused("oxford", folder, capsys)
 
 
 def test_radiate_index_files_that_are_no_text(folder, capsys):
@@ -319,14 +303,14 @@ def test_radiate_index_files_that_are_no_text(folder, capsys):
     index = folder / "Navtech_Polar.txt"
     good = index.read_text()
     index.write_bytes(good.encode() + b"Frame: 000004 Time: \x89PNG\n")
-    assert _fails("radiate", folder, capsys).endswith(f"{index}: line 4: byte 0x89 is not text ('Frame: <n> Time: "
+    assert refused("radiate", folder, capsys).endswith(f"{index}: line 4: byte 0x89 is not text ('Frame: <n> Time: "
                                                       "<seconds>' lines expected)")
     index.write_text(good + "Frame: 000004 Time: 99999999999999999999999.5\n")
     assert "line 4: frame 000004 at 99999999999999999999999 s: expected a frame number below 10^9 and a Unix time " \
-           "of 1970-2100" in _fails("radiate", folder, capsys)
+           "of 1970-2100" in refused("radiate", folder, capsys)
     index.unlink()
     index.mkdir()
-    assert _fails("radiate", folder, capsys).endswith(f"{index}: a folder, expected 'Frame: <n> Time: <seconds>' "
+    assert refused("radiate", folder, capsys).endswith(f"{index}: a folder, expected 'Frame: <n> Time: <seconds>' "
                                                       "lines")
 
 
@@ -343,7 +327,7 @@ def test_radiate_gps_file_that_is_no_text(folder, capsys, kind):
     else:
         paths[10].write_bytes(b"55.9, -3.2, 115.0\n\xc3\x28\n")
         says = "line 2: byte 0xc3 is not text"
-    assert _fails("radiate", folder, capsys, "--gps-offset-s", "0").endswith(f"{paths[10]}: {says}" + (
+    assert refused("radiate", folder, capsys, "--gps-offset-s", "0").endswith(f"{paths[10]}: {says}" + (
         " (a GPS/IMU text file expected)" if kind == "binary" else ""))
 
 
@@ -351,10 +335,10 @@ def test_oxford_scan_index_that_is_no_text(folder, capsys):
     navtech_folder(folder, n_scans=2)
     index = folder / "radar.timestamps"
     index.write_bytes(b"1700000000000000 1\n\xff\xd8\xff\n")
-    assert _fails("oxford", folder, capsys).endswith(f"{index}: line 2: byte 0xff is not text ('<timestamp_us> "
+    assert refused("oxford", folder, capsys).endswith(f"{index}: line 2: byte 0xff is not text ('<timestamp_us> "
                                                      "<chunk>' lines expected)")
     index.write_text("1700000000000000 1\n1700000000250000 1\n1690000000000000 1\n")
-    assert _fails("oxford", folder, capsys).endswith(f"{index}: line 3: time 1690000000.000000000 s is "
+    assert refused("oxford", folder, capsys).endswith(f"{index}: line 3: time 1690000000.000000000 s is "
                                                      "10000000.250 s before an earlier one: a clock step back of "
                                                      "more than 10 s is no logging quirk")
 
@@ -362,7 +346,7 @@ def test_oxford_scan_index_that_is_no_text(folder, capsys):
 def test_one_scan_whose_rows_share_one_time_is_named(folder, capsys):
     t = 1_700_000_000_000_000
     navtech_png(folder / "radar" / f"{t}.png", t, times_us=np.full(400, t, np.int64))
-    assert _fails("oxford", folder, capsys).endswith(f"{folder / 'radar' / f'{t}.png'}: cannot measure the rotation "
+    assert refused("oxford", folder, capsys).endswith(f"{folder / 'radar' / f'{t}.png'}: cannot measure the rotation "
                                                      "rate: one scan whose rows share one time")
 
 

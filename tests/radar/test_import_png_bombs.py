@@ -53,13 +53,6 @@ def _one_error_line(capfd) -> str:
     return err[0]
 
 
-@pytest.fixture
-def folder(tmp_path):
-    d = tmp_path / "data"
-    d.mkdir()
-    return d
-
-
 def test_a_header_of_50000_x_50000_is_refused_naming_the_file_and_skipped(folder, capfd):
     paths = navtech_folder(folder, n_scans=3)
     paths[1].write_bytes(_bomb(50_000, 50_000))

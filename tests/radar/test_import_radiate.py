@@ -13,22 +13,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from impala_flow.cli import main
-from impala_flow.io import MissionReader
 from impala_flow.msgs import wrap_angle
 
 from ..datasets import radiate_head_or_skip
 from ._dataset_files import radiate_folder, radiate_time
+from ._import_cli import import_radiate
 
 
 def _import(folder, out, *extra):
-    # the synthetic GPS files are written on the radar's clock: no offset (the real one's: its own test)
-    if out.parent == folder:  # an output inside the dataset folder is refused: beside it
-        out = folder.parent / f"{folder.name}-{out.name}"
-    assert main(["import", "radiate", str(folder), "-o", str(out), "--no-progress", "--gps-offset-s", "0", *extra]) == 0
-    with MissionReader(out) as r:
-        beams = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
-        truth = [(m.t_ns, m.data) for m in r.messages(["truth/pose"])] if "truth/pose" in r.topics else []
+    beams, truth, _ = import_radiate(folder, out, *extra)
     return beams, truth
 
 

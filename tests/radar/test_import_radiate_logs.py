@@ -13,33 +13,15 @@ from decimal import Decimal
 import numpy as np
 import pytest
 
-from impala_flow.cli import main
-from impala_flow.io import MissionReader
 from impala_flow.msgs import HEADING_UNKNOWN_VAR_RAD2, wrap_angle
 from impala_radar.datasets import ImportReport, open_dataset
 
 from ..datasets import _find
 from ._dataset_files import radiate_folder, radiate_gps
+from ._import_cli import import_block, import_radiate
 
 P_NS = 250_000_000
 T0_NS = 1_549_986_548_010_563_645  # a RADIATE time with a leading zero in its nanoseconds
-
-
-def _import(folder, out, *extra):
-    # the synthetic GPS files are written on the radar's clock: no offset (the real one's: its own test)
-    if out.parent == folder:  # an output inside the dataset folder is refused: beside it
-        out = folder.parent / f"{folder.name}-{out.name}"
-    assert main(["import", "radiate", str(folder), "-o", str(out), "--no-progress", "--gps-offset-s", "0", *extra]) == 0
-    with MissionReader(out) as r:
-        beams = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
-        truth = [(m.t_ns, m.data) for m in r.messages(["truth/pose"])] if "truth/pose" in r.topics else []
-        meta = r.metadata().get("impala_flow.source.radiate", {})
-    return beams, truth, meta
-
-
-def _block(text):
-    """The import block as {key: value} (lines 'key: value')."""
-    return {k.strip(): v.strip() for k, _, v in (ln.partition(":") for ln in text.splitlines()) if v}
 
 
 def _radiate_ns(text):
@@ -61,32 +43,32 @@ def test_unpadded_nanoseconds_read_as_radiates_sdk(tmp_path, capsys):
     radiate_folder(tmp_path, times, rows=4, cols=8)
     written = [ln.split()[-1] for ln in (tmp_path / "Navtech_Polar.txt").read_text().splitlines()]
     assert written[0] == "1549986548.10563645" and sum(len(w.split(".")[1]) < 9 for w in written) == 6
-    beams, _, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     assert _first_beam_times(beams) == [_radiate_ns(w) for w in written] == times
-    block = _block(capsys.readouterr().out)
+    block = import_block(capsys.readouterr().out)
     assert block["padded times"].startswith("6 of 6 lines of Navtech_Polar.txt")
 
 
 def test_radar_time_going_back_or_repeated_is_dropped_and_reported(tmp_path, capsys):
     t = [T0_NS + k * P_NS for k in range(6)]
     radiate_folder(tmp_path, [t[0], t[1], t[1] - 150_000_000, t[2], t[2], t[3]], rows=4, cols=8)
-    beams, _, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     assert _first_beam_times(beams) == [t[0], t[1], t[2], t[3]]  # frames 3 and 5 dropped, the rest read
     assert [b.turn for _, b in beams][::8] == [0, 1, 2, 3]
     out = capsys.readouterr().out
     assert "turns:        4" in out
-    assert _block(out)["times back"] == ("radar: 2 line(s) dropped (time going back or repeated): "
+    assert import_block(out)["times back"] == ("radar: 2 line(s) dropped (time going back or repeated): "
                                          "line 3 (frame 000003, -0.150 s); line 5 (frame 000005, +0.000 s)")
 
 
 def test_a_1_6_s_radar_gap_is_reported_and_no_beam_spreads_over_it(tmp_path, capsys):
     t = [T0_NS + k * P_NS for k in range(10)] + [T0_NS + 9 * P_NS + 1_600_000_000 + k * P_NS for k in range(10)]
     radiate_folder(tmp_path, t, rows=4, cols=8)
-    beams, _, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     assert _first_beam_times(beams) == t  # no frame retimed: the frames after the gap do not catch up
     before = [bt for bt, b in beams if b.turn == 9]
     assert before == [t[9] + j * P_NS // 8 for j in range(8)] and before[-1] < t[9] + P_NS < t[10]
-    block = _block(capsys.readouterr().out)
+    block = import_block(capsys.readouterr().out)
     # 1.6 s = 6.4 turns: 5 turns missing (round(6.4) - 1)
     assert block["radar gaps"] == (f"1 gap(s), 5 turns missing; longest 1.600 s before frame 000011 "
                                    f"(t = {t[10] // 10**9}.{t[10] % 10**9:09d} s)")
@@ -99,15 +81,15 @@ def test_a_late_stamped_backlog_is_put_back_on_the_turn_clock(tmp_path, capsys):
     true = np.array([T0_NS + k * P_NS for k in range(160)], dtype=np.int64)
     late_ns = np.array([0] * 20 + [max(0, 800_000_000 - 20_000_000 * j) for j in range(140)], dtype=np.int64)
     radiate_folder(tmp_path, (true + late_ns).tolist(), rows=4, cols=8)
-    beams, _, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     n_late = int(np.sum(late_ns > P_NS // 10))  # late by more than 0.1 turn: on the clock; the others as stamped
     assert _first_beam_times(beams) == np.where(late_ns > P_NS // 10, true, true + late_ns).tolist()
-    block = _block(capsys.readouterr().out)
+    block = import_block(capsys.readouterr().out)
     assert block["late frames"].startswith(f"{n_late} frame(s) stamped late by > 25 ms (up to 0.800 s, frame 000021")
     assert block["radar gaps"].startswith("none")
-    beams, _, _ = _import(tmp_path, tmp_path / "k.mcap", "--keep-frame-stamps")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "k.mcap", "--keep-frame-stamps")
     assert _first_beam_times(beams) == (true + late_ns).tolist()
-    assert block["late frames"] != _block(capsys.readouterr().out)["late frames"]
+    assert block["late frames"] != import_block(capsys.readouterr().out)["late frames"]
 
 
 def _drive(t_s):
@@ -130,8 +112,8 @@ def test_truth_heading_from_the_course_over_ground_known_only_while_moving(tmp_p
     east, north, psi, speed = _drive(ts)
     east = east + 0.002 * np.sin(ts * 1.7) * (speed == 0)  # a real receiver's fix moves a little at rest
     radiate_gps(tmp_path, t_fix.tolist(), east, north, psi - np.radians(7.0))  # the IMU off by -7 deg
-    _, truth, _ = _import(tmp_path, tmp_path / "r.mcap")
-    block = _block(capsys.readouterr().out)
+    _, truth, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
+    block = import_block(capsys.readouterr().out)
     t = np.array([ti for ti, _ in truth])
     inside = (t_fix >= T0_NS) & (t_fix <= T0_NS + 112 * P_NS)
     assert t.tolist() == t_fix[inside].tolist()
@@ -174,8 +156,8 @@ def test_gps_log_quirks_repeats_clock_step_back_stale_fix_missing_file(tmp_path,
     east = np.arange(200) * 0.5  # 10 m/s east
     east[150] = east[149]  # fix 150: a stale fix (the previous position at a new time)
     radiate_gps(tmp_path, stamped.tolist(), east, np.zeros(200), np.zeros(200), index_only=(170,))
-    _, truth, meta = _import(tmp_path, tmp_path / "r.mcap")
-    block = _block(capsys.readouterr().out)
+    _, truth, meta = import_radiate(tmp_path, tmp_path / "r.mcap")
+    block = import_block(capsys.readouterr().out)
     for key in ("padded times", "repeats", "times back", "clock steps", "late frames", "radar gaps", "GPS gaps",
                 "GPS files", "truth", "heading", "IMU yaw"):  # the same facts in the mission file's metadata
         assert meta[key.replace(" ", "_")] == block[key]
@@ -203,7 +185,7 @@ def test_frames_from_401_import(tmp_path, capsys):
     radiate_folder(tmp_path, times, rows=4, cols=8, first=401)
     t_fix = T0_NS + np.arange(60) * 50_000_000
     radiate_gps(tmp_path, t_fix.tolist(), np.arange(60) * 0.5, np.zeros(60), np.zeros(60), first=8021)
-    beams, truth, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, truth, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     assert _first_beam_times(beams) == times and len(truth) == 60
     assert sorted(p.name for p in (tmp_path / "Navtech_Polar").glob("*.png"))[0] == "000401.png"
     assert "turns:        12" in capsys.readouterr().out
@@ -212,10 +194,10 @@ def test_frames_from_401_import(tmp_path, capsys):
 def test_a_listed_frame_without_png_is_a_gap_not_an_error(tmp_path, capsys):
     paths = radiate_folder(tmp_path, [T0_NS + k * P_NS for k in range(8)], rows=4, cols=8)
     paths[4].unlink()
-    beams, _, _ = _import(tmp_path, tmp_path / "r.mcap")
+    beams, _, _ = import_radiate(tmp_path, tmp_path / "r.mcap")
     before = [bt for bt, b in beams if b.turn == 3]
     assert len(_first_beam_times(beams)) == 7 and before[-1] < T0_NS + 4 * P_NS
-    block = _block(capsys.readouterr().out)
+    block = import_block(capsys.readouterr().out)
     assert block["radar gaps"].endswith("1 frame(s) listed without a PNG (first 000005), not read")
 
 
