@@ -1,7 +1,8 @@
 """Session: one run's plugins, graph, network and executor, built fresh every time.
 
     session = Session()                               # discovers installed plugins now
-    spec = session.load("graphs/frontend.yaml", overrides=["slam.cell_m=0.4"])
+    spec = session.load("graphs/frontend.yaml", overrides=["pairer.pfa=1e-4"],
+                        variables={"mission": "out/beynes.mcap"})
     summary = session.run(spec, speed="max")          # offline; SIGINT/SIGTERM stop cleanly
 """
 

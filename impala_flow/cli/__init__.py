@@ -27,7 +27,7 @@ COMMANDS = ("run", "validate", "plugins", "graph", "schema", "info", "replay", "
 EPILOG = """\
 examples:
   impala-flow demo                              simulate a short mission, run the chain, report
-  impala-flow run graphs/frontend.yaml --set pairer.pfa=1e-4
+  impala-flow run graphs/frontend.yaml --var mission=out/beynes.mcap --set pairer.pfa=1e-4
   impala-flow validate my_graph.yaml            check a graph without running it
   impala-flow plugins                           installed plugins, their components and ports
   impala-flow graph my_graph.yaml --png g.png   picture of a graph (or --dot for Graphviz text)

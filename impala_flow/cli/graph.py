@@ -28,10 +28,12 @@ __all__ = ["add_parser", "run", "draw_png", "layout"]
 
 EPILOG = """\
 examples:
-  impala-flow graph graphs/frontend.yaml                  DOT text on stdout
-  impala-flow graph graphs/frontend.yaml | dot -Tsvg > g.svg   (if Graphviz is installed)
-  impala-flow graph graphs/frontend.yaml --png g.png      a picture, drawn with matplotlib
-  impala-flow graph graphs/frontend.yaml --png g.png --dot > g.dot   both
+  impala-flow graph my_graph.yaml                  DOT text on stdout
+  impala-flow graph my_graph.yaml | dot -Tsvg > g.svg   (if Graphviz is installed)
+  impala-flow graph my_graph.yaml --png g.png      a picture, drawn with matplotlib
+  impala-flow graph my_graph.yaml --png g.png --dot > g.dot   both
+  impala-flow graph graphs/frontend.yaml --var mission=out/beynes.mcap --png g.png
+                                                   a replay graph: its mission gives the replayer's ports
 
 In the picture components run left to right in graph order; inputs are on the left of a
 box, outputs on the right; dashed arrows are delayed connections ('a.out -> b.in [delay]').

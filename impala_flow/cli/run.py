@@ -21,7 +21,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "run", help="run a graph", description="Validate GRAPH, then run it. Offline graphs (clock mode "
         "'replay') run on the deterministic executor, paced by --speed; 'realtime' graphs run live. "
         "Ctrl-C stops cleanly: every component's stop() runs and the summary prints.",
-        epilog="example: impala-flow run graphs/frontend.yaml --speed 2 --set pairer.pfa=1e-4",
+        epilog="example: impala-flow run graphs/frontend.yaml --var mission=out/beynes.mcap --speed 2 "
+               "--set pairer.pfa=1e-4",
     )
     add_graph_args(p)
     p.add_argument("--speed", default=None, metavar="X|max",

@@ -15,7 +15,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Load GRAPH with its includes, variables and --set overrides, and check it against "
         "the installed plugins: component types, parameters, ports, port types, required inputs, "
         "cycles, record streams. Every problem is printed with file:line:column.",
-        epilog="example: impala-flow validate graphs/frontend.yaml --set pairer.pfa=1e-4",
+        epilog="example: impala-flow validate graphs/frontend.yaml --var mission=out/beynes.mcap --set pairer.pfa=1e-4",
     )
     add_graph_args(p)
     p.set_defaults(func=run)

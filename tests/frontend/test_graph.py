@@ -1,9 +1,12 @@
 """The front-end chain wired as in graphs/frontend.yaml, and the report's figures."""
 
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
+from impala_flow.cli import main
+from impala_flow.io import MissionReader
 from impala_flow.msgs import RadarBeam, Speed
 from impala_flow.session import Session
 from impala_flow.testing import ScriptedSource, run_components
@@ -15,11 +18,24 @@ from ._scenes import target_beams
 GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "frontend.yaml"
 
 
-def test_frontend_graph_validates():
-    spec = Session().load(str(GRAPH))
+def test_frontend_graph_on_a_recorded_mission(tmp_path):
+    """graphs/frontend.yaml as the evaluation graphs are run (``mission`` and ``out``): one panoramic
+    image and one filtered image per antenna turn of the mission, recorded under ``out``, and the figures."""
+    mission, out = tmp_path / "beynes.mcap", tmp_path / "fe"
+    assert main(["simulate", "beynes", "-o", str(mission), "--duration", "3s", "--no-progress"]) == 0
+    spec = Session().load(str(GRAPH), variables={"mission": str(mission), "out": str(out)})
     assert {c.type for c in spec.components.values()} >= {
         "radar.FuzzyPairer", "radar.EgoVelocity", "radar.PanoramicBuilder", "radar.SpeckleFilter",
         "radar.FrontendReport"}
+    assert main(["run", str(GRAPH), "--var", f"mission={mission}", "--var", f"out={out}", "--no-progress"]) == 0
+    with MissionReader(mission) as r:
+        turns = {m.data.turn for m in r.messages(["radar/beams"])}
+    with MissionReader(out / "frontend.mcap") as r:
+        counts = Counter(m.topic for m in r.messages())
+    assert len(turns) >= 2
+    assert counts["panoramic/scan"] == counts["speckle/filtered"] == counts["ego/speed"] == len(turns)
+    for name in ("ppi.png", "doppler.png", "pairs.png"):
+        assert (out / name).stat().st_size > 10_000
 
 
 def test_chain_and_report(tmp_path):
