@@ -58,7 +58,7 @@ def _timed(comp, acc: dict[str, float]) -> None:  # type: ignore[no-untyped-def]
 
 def run(args: tuple[str, str]) -> dict:
     mission, report = args
-    from impala_flow.session import Session
+    from impala_flow import Session
 
     session = Session()
     spec = session.load(GRAPH, variables={"mission": mission, "out": report})

@@ -26,9 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param, Source
-from impala_flow.network import Network
-from impala_flow.runtime import RealTimeExecutor
+from impala_flow import Component, Input, Network, Output, Param, RealTimeExecutor, Source
 
 PAYLOAD = b"\x00" * 8
 

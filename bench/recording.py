@@ -194,7 +194,7 @@ def make_big(path: Path, size_gb: float, reg: CodecRegistry) -> tuple[int, int]:
 # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, i.e. the parent's peak
 REPLAY_RSS = """
 import sys
-from impala_flow.component import Component, Input
+from impala_flow import Component, Input
 from impala_flow.testing import run_components
 from impala_io import Replayer
 class Null(Component):
@@ -204,7 +204,7 @@ class Null(Component):
                 p.take()
 rep = Replayer("mission", path=sys.argv[1])
 null = Null("null")
-from impala_flow.ports import InputPort
+from impala_flow import InputPort
 null.inputs = {k: InputPort(null, k, Input(object)) for k in rep.outputs}
 run_components(rep, null, connections=[f"mission.{k} -> null.{k}" for k in rep.outputs])
 hwm = [l for l in open("/proc/self/status") if l.startswith("VmHWM:")][0]

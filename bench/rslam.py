@@ -31,9 +31,14 @@ import numpy as np  # noqa: E402
 
 cv2.setNumThreads(1)
 
-from impala_flow.component import Component, Output, Param, Source  # noqa: E402
+from impala_flow import (  # noqa: E402
+    Component,
+    Output,
+    Param,
+    Session,  # noqa: E402
+    Source,
+)
 from impala_flow.msgs import Grid, Pose2D, Speed, YawRate  # noqa: E402
-from impala_flow.session import Session  # noqa: E402
 
 GRAPH_SIM = """
 name: rslam-bench

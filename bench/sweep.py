@@ -50,7 +50,7 @@ def simulate(folder: Path, n: int, duration_s: float) -> list[Path]:
 
 def plain_loop(graph: str, out: str, missions: list[str]) -> None:
     """The loop timed as the baseline (run in a fresh process: ``--plain-loop``)."""
-    from impala_flow.session import Session
+    from impala_flow import Session
 
     rows = []
     for m in missions:

@@ -1,21 +1,33 @@
 """impala-flow: timestamped robotics dataflow, recorded to MCAP, replayed deterministically.
 
-The public API of the engine. The engine knows nothing about radar: the radar chain
-lives in plugins registered through the ``impala_flow`` entry point group.
+The public API. A plugin imports only these modules (a contract in pyproject.toml checks it):
+
+- ``impala_flow``: components, ports, parameters, samples, networks, executors, clocks, the
+  session, errors, located YAML for a plugin's own files;
+- :mod:`impala_flow.msgs`: the message contract and the domain-free geometry types;
+- :mod:`impala_flow.io`: recording and replay (MCAP readers, writers, codecs, JSON views);
+- :mod:`impala_flow.plugins`: ``hookimpl`` and the hooks (:mod:`impala_flow.hookspecs`);
+- :mod:`impala_flow.cli` and :mod:`impala_flow.cli.helpers`: what a plugin's command needs;
+- :mod:`impala_flow.testing`: the test kit (also a pytest plugin).
+
+Every other module is private (its name starts with ``_``). The engine knows nothing about
+radar: the radar chain lives in plugins registered through the ``impala_flow`` entry point group.
 """
 
 from importlib.metadata import PackageNotFoundError, version
 
-from .clock import FakeClock, MissionClock, ReplayClock
-from .component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
-from .executor import OfflineExecutor, run_offline
-from .graph import GraphError
-from .network import Connection, CycleError, Network
-from .ports import EmptyInput, InputPort, OutOfHistory, OutputPort
-from .runtime import RealTimeExecutor
-from .sample import Sample
-from .session import Session
-from .summary import ComponentError, RunSummary
+from ._clock import FakeClock, MissionClock, ReplayClock
+from ._component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
+from ._graph import GraphError
+from ._network import Connection, CycleError, Network
+from ._offline import OfflineExecutor, run_offline
+from ._paths import output_clash
+from ._ports import EmptyInput, InputPort, OutOfHistory, OutputPort
+from ._realtime import RealTimeExecutor
+from ._sample import Sample
+from ._session import Session
+from ._summary import ComponentError, RunSummary
+from ._yamlloc import YamlError, load_yaml, location
 
 try:
     __version__ = version("impala-flow")
@@ -27,5 +39,5 @@ __all__ = [
     "ParamError", "Network", "Connection", "CycleError", "OfflineExecutor", "run_offline",
     "ReplayClock", "MissionClock", "FakeClock", "RunSummary", "ComponentError",
     "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "RealTimeExecutor", "Session", "GraphError",
-    "__version__",
+    "YamlError", "load_yaml", "location", "output_clash", "__version__",
 ]

@@ -24,7 +24,7 @@ import pluggy
 if TYPE_CHECKING:
     import argparse
 
-    from .registry import Registry
+    from ._registry import Registry
 
 PROJECT = "impala_flow"
 hookspec = pluggy.HookspecMarker(PROJECT)

@@ -8,7 +8,7 @@ takes the others down: it is left out (what it registered before failing is remo
 recorded in ``PluginManager.broken`` / ``Registry.broken`` with its one-line error, logged
 once as a warning, and listed by ``impala-flow plugins``; only graphs using its types fail.
 Two plugins claiming one name remain an error of the installation
-(:class:`~impala_flow.registry.NameConflictError`, naming both).
+(:class:`~impala_flow._registry.NameConflictError`, naming both).
 """
 
 from __future__ import annotations
@@ -20,10 +20,11 @@ from typing import Any
 import pluggy
 
 from . import hookspecs
+from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
-from .registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
 
-__all__ = ["hookimpl", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager", "warn_broken"]
+__all__ = ["hookimpl", "Registry", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager",
+           "warn_broken"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 

@@ -18,14 +18,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from typing import Any
 
-from .clock import FakeClock, ReplayClock
-from .component import Component, Input, Output, Param, Source
-from .executor import OfflineExecutor
+from ._clock import FakeClock, ReplayClock
+from ._component import Component, Input, Output, Param, Source
+from ._network import Network
+from ._offline import OfflineExecutor
+from ._sample import Sample
+from ._session import Session
+from ._summary import RunSummary
 from .hookspecs import hookimpl
-from .network import Network
-from .sample import Sample
-from .session import Session
-from .summary import RunSummary
 
 __all__ = [
     "ScriptedSource", "CollectingSink", "run_components", "connect", "plugin_of", "FakeClock",
@@ -84,7 +84,7 @@ class CollectingSink(Component):
 
 def connect(net: Network, spec: str) -> None:
     """Wire ``"a.out -> b.in"`` (``[delay]`` suffix allowed) inside ``net``."""
-    from .graph import _CONN
+    from ._graph import _CONN
 
     m = _CONN.match(spec)
     if not m:

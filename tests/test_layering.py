@@ -86,7 +86,7 @@ def test_the_scan_sees_imports(tmp_path: Path) -> None:  # guards the scanner it
         (3, "impala_io.recorder"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.sim"),
     ]
     mods = {m for _, m in imported_modules(ENGINE / "plugins.py")}
-    assert {"pluggy", "impala_flow.hookspecs", "impala_flow.registry"} <= mods
+    assert {"pluggy", "impala_flow.hookspecs", "impala_flow._registry"} <= mods
     mods = {m for _, m in imported_modules(ENGINE / "cli" / "__init__.py")}
     assert "impala_flow.plugins" in mods  # a function-level, relative import
 

@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from impala_flow.graph import GraphError
+from impala_flow._graph import GraphError
+from impala_flow._registry import RegistrationError
+from impala_flow._session import Session
 from impala_flow.msgs import message
 from impala_flow.plugins import DISABLE_ENV, hookimpl, load_registry, make_plugin_manager
-from impala_flow.registry import RegistrationError
-from impala_flow.session import Session
 from impala_flow.testing import CollectingSink, plugin_of
 
 if TYPE_CHECKING:
@@ -322,12 +322,12 @@ def test_importing_the_engine_loads_no_plugin() -> None:
             built.append(a)
             init(self, *a, **k)
         pluggy.PluginManager.__init__ = spy
-        import impala_flow, impala_flow.plugins, impala_flow.session, impala_flow.testing, impala_flow.cli
+        import impala_flow, impala_flow.plugins, impala_flow._session, impala_flow.testing, impala_flow.cli
         loaded = sorted(m for m in sys.modules
                         if m.split(".")[0] in {"impala_flow_example", "impala_radar", "impala_io",
                                                "impala_slam", "impala_tracking", "impala_eval"})
         at_import = len(built)
-        from impala_flow.session import Session
+        from impala_flow._session import Session
         Session()
         print(json.dumps({"managers_at_import": at_import, "plugins_at_import": loaded,
                           "after_session": "impala_flow_example.plugin" in sys.modules}))

@@ -59,9 +59,9 @@ def make_parser(with_plugins: bool = True) -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
-            mod = importlib.import_module(f".{name}", __name__)
+            mod = importlib.import_module(f"._{name}", __name__)
         except ModuleNotFoundError as e:
-            if e.name == f"{__name__}.{name}":
+            if e.name == f"{__name__}._{name}":
                 continue  # subcommand not built in this installation
             raise
         mod.add_parser(sub)

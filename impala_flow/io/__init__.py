@@ -7,8 +7,8 @@
   cut or damaged files, count what a damaged chunk held (:class:`Loss`).
 """
 
-from .codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
-from .errors import (
+from ._codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
+from ._errors import (
     BadMagicError,
     CodecError,
     CorruptChunkError,
@@ -21,15 +21,17 @@ from .errors import (
     TruncatedRecordingError,
     UnknownSchemaError,
 )
-from .foxglove import foxglove_topic
-from .reader import ChannelInfo, Loss, MissionReader, Recorded, RecordingInfo
-from .registry import CodecRegistry
-from .writer import COMPRESSIONS, MissionWriter
+from ._foxglove import foxglove_topic
+from ._jsonview import encode as encode_json
+from ._jsonview import json_schema, to_json
+from ._reader import ChannelInfo, Loss, MissionReader, Recorded, RecordingInfo
+from ._registry import CodecRegistry
+from ._writer import COMPRESSIONS, MissionWriter
 
 __all__ = [
     "CodecRegistry", "Codec", "MessageCodec", "BuiltinCodec", "SCHEMA_ENCODING",
     "MESSAGE_ENCODING", "MissionWriter", "COMPRESSIONS", "MissionReader", "RecordingInfo",
-    "ChannelInfo", "Recorded", "Loss", "foxglove_topic",
+    "ChannelInfo", "Recorded", "Loss", "foxglove_topic", "to_json", "json_schema", "encode_json",
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",

@@ -35,7 +35,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, ChunkIndex, Header, Metadata, Schema, Statistics
 
-from .errors import (
+from ._errors import (
     BadMagicError,
     CorruptChunkError,
     CorruptSummaryError,

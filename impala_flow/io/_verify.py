@@ -16,7 +16,7 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from . import _mcapfile as mf
-from .errors import CorruptChunkError, RecordingError
+from ._errors import CorruptChunkError, RecordingError
 
 __all__ = ["verify_file"]
 

@@ -4,7 +4,7 @@ See :mod:`impala_flow.msgs._base` for the contract a message type follows.
 """
 
 from ._base import freeze, invalid_fields, is_message, message, schema_name, schema_version
-from .geometry import (
+from ._geometry import (
     HEADING_UNKNOWN_VAR_RAD2,
     Grid,
     Points2D,

@@ -10,12 +10,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..build import validate
-from ..component import Param
-from ..graph import resolve_graph
-from ..paths import resolve_paths
-from ..registry import Registry
-from ..spec import GraphError, GraphSpec, closest, did_you_mean
+from .._build import validate
+from .._component import Param
+from .._graph import resolve_graph
+from .._paths import resolve_paths
+from .._registry import Registry
+from .._spec import GraphError, GraphSpec, closest, did_you_mean
 from .spec import SweepError, SweepSpec, format_value
 
 __all__ = ["check_sweep"]

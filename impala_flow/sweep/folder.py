@@ -10,7 +10,7 @@ creates there (its output files, ``tasks/<id>/`` per task, its simulated mission
   previous sweep created is removed, nothing else; another folder: refused if any name the
   sweep writes is already there, so no file of the user's is ever overwritten);
 - an output folder equal to, inside or over a mission, the sweep file or the graph is refused
-  (:func:`impala_flow.paths.output_clash`);
+  (:func:`impala_flow._paths.output_clash`);
 - deletions go through :func:`remove_own`: one child of the sweep's ``tasks/`` or
   ``missions/`` folder, named as the sweep names them, links not followed.
 """
@@ -24,7 +24,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from ..paths import output_clash
+from .._paths import output_clash
 from .spec import SweepError, SweepSpec, is_safe_id
 
 __all__ = ["RECORD", "OWN_FILES", "prepare_folder", "sweep_identity", "remove_own", "compare"]
@@ -48,7 +48,7 @@ def _sha256(path: str | Path) -> str | None:
 
 def _graph_files(graph: Path) -> list[str]:
     """The graph file and the files it includes (each once)."""
-    from ..graph import _read
+    from .._graph import _read
 
     try:
         _, chain = _read(graph.resolve(), [], (graph.resolve(),), {graph.resolve()}, [1 << 30])

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..yamlloc import YamlError, load_yaml, location
+from .._yamlloc import YamlError, load_yaml, location
 
 __all__ = ["SweepSpec", "SweepError", "Task", "load_sweep", "format_value", "RESERVED_VARIABLES", "MAX_TASKS",
            "MAX_TASKS_CEILING", "is_safe_id", "clean_name"]

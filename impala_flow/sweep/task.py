@@ -167,10 +167,10 @@ def run_task(task: Task, ctx: SweepContext, mission: dict[str, Any] | None = Non
 
     The folder ``tasks/<id>/`` of the sweep is the graph's ``${out}``; it also gets
     :data:`RUN_SUMMARY` (the run summary as ``--summary-json`` writes it) and :data:`RUN_LOG`."""
-    from ..graph import GraphError
-    from ..session import Session
-    from ..summary import ComponentError
-    from ..yamlloc import YamlError
+    from .._graph import GraphError
+    from .._session import Session
+    from .._summary import ComponentError
+    from .._yamlloc import YamlError
 
     t0 = time.perf_counter()
     undo_dask_malloc_trim()

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param, ParamError
+from impala_flow import Component, Input, Output, Param, ParamError
 from impala_flow.msgs import Grid, Pose2D, Trajectory2D
 
 from .metrics import (

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from impala_flow.cli import EXIT_OK, CommandError
-from impala_flow.cli._common import open_session, run_network
+from impala_flow.cli.helpers import open_session, run_network
 
 from .report import format_metrics, load_metrics
 

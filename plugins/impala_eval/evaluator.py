@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Param
+from impala_flow import Component, Input, Param
 from impala_flow.msgs import Grid, Pose2D, Twist2D
 
 from .metrics import SEGMENT_LENGTHS_M, TrajectoryMetrics, TwistErrors, trajectory_metrics, twist_errors

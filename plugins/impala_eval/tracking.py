@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Param
+from impala_flow import Component, Input, Param
 from impala_flow.msgs import ObjectStates, Pose2D, TrackExistence
 
 from .tracking_metrics import TrackingFrames, tracking_metrics

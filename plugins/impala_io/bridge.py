@@ -5,11 +5,11 @@ of ``foxglove.websocket.v1`` with the same operations; the Foxglove app speaks b
 Foxglove, "Open connection", "Foxglove WebSocket", ``ws://HOST:PORT``. One input per stream,
 named after its topic (``topics``: topic -> the ``component.port`` it shows, as for
 ``io.Recorder``). Each sample is sent stamped with its own time (``log_time`` = its int ns),
-the same way a recording shows it (:mod:`impala_flow.io.foxglove`):
+the same way a recording shows it (:mod:`impala_flow.io._foxglove`):
 
 - poses, trajectories, grids, point sets, objects, detections and scans in Foxglove's
   protobuf schemas (the 3D, Image and Plot panels show them);
-- every other value as its JSON view with a JSON Schema (:mod:`impala_flow.io.jsonview`):
+- every other value as its JSON view with a JSON Schema (:mod:`impala_flow.io._jsonview`):
   fields by name, arrays over ``max_array`` values as their shape, plain numbers as
   ``{"value": x}``, so the Plot panel plots any scalar stream (speeds, yaw rates, counters).
 
@@ -43,12 +43,11 @@ import threading
 import weakref
 from typing import Any
 
-from impala_flow.component import Component, Input, Param
-from impala_flow.io.foxglove import mirror_for
-from impala_flow.io.jsonview import encode as encode_json
-from impala_flow.io.jsonview import json_schema, to_json
+from impala_flow import Component, Input, Param
+from impala_flow.io import encode_json, json_schema, to_json
+from impala_flow.io._foxglove import mirror_for
 
-__all__ = ["FoxgloveBridge", "to_json"]  # to_json: the JSON view (impala_flow.io.jsonview)
+__all__ = ["FoxgloveBridge", "to_json"]  # to_json: the JSON view (impala_flow.io._jsonview)
 
 log = logging.getLogger(__name__)
 

@@ -5,11 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+from impala_flow import ComponentError, Network
 from impala_flow.cli import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
-from impala_flow.cli._common import Progress, check_speed, open_session
+from impala_flow.cli.helpers import Progress, check_speed, open_session
 from impala_flow.io import RecordingError
-from impala_flow.network import Network
-from impala_flow.summary import ComponentError
 
 from .bridge import MIN_BACKLOG, FoxgloveBridge
 from .replayer import TIME_JUMP, Replayer

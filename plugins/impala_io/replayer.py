@@ -7,7 +7,7 @@ import logging
 from collections.abc import Iterator
 from typing import Any
 
-from impala_flow.component import Component, Input, Output, Param, Source
+from impala_flow import Component, Input, Output, Param, Source
 from impala_flow.io import MissionReader, UnknownSchemaError
 
 from ._codecs import run_codecs

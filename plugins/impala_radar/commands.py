@@ -9,9 +9,9 @@ import stat
 from collections.abc import Callable
 from pathlib import Path
 
+from impala_flow import output_clash
 from impala_flow.cli import EXIT_FAILED, EXIT_USAGE, CommandError
-from impala_flow.cli._common import open_session, record_source
-from impala_flow.paths import output_clash
+from impala_flow.cli.helpers import open_session, record_source
 
 from .sources import DATASET_SOURCES, DATASET_TOPICS, SIM_TOPICS, Simulator
 

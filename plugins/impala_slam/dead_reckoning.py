@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from impala_flow.component import Component, Input, Output, Param, Periodic
+from impala_flow import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Pose2D, Speed, YawRate
 
 __all__ = ["DeadReckoning", "arc_step"]

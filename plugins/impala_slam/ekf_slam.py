@@ -49,9 +49,8 @@ from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Input, Output, Param, Periodic
+from impala_flow import Input, OutOfHistory, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D, Trajectory2D
-from impala_flow.ports import OutOfHistory
 
 from .ekf_core import PoseEkf
 from .fmt import FmtImage, FmtParams, polar_spectrum, prepare, register

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Pose2D, RadarDetections, Twist2D
 
 from . import se2

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import KalmanFilter
 
-from impala_flow.component import Component, Input, Output, Param, Periodic
+from impala_flow import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, RadarBeam, Scalar, Twist2D
 
 from .dead_reckoning import arc_step

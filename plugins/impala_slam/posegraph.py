@@ -33,7 +33,7 @@ from typing import Any
 import gtsam
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param, Periodic
+from impala_flow import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Pose2D, RelativePose2D, Trajectory2D
 
 __all__ = ["PoseGraph", "PoseGraphCore"]

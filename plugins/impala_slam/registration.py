@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D
 
 from .fmt import FmtImage, FmtParams, prepare, register

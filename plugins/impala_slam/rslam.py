@@ -51,7 +51,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param, Periodic
+from impala_flow import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, Twist2D
 
 from .matching import MatchParams, match_to_map

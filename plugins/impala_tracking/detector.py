@@ -27,7 +27,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Pose2D, RadarDetections, Speed
 
 from .types import MoverDetections

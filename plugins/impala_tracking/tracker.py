@@ -32,7 +32,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.special import ndtr
 from scipy.stats import chi2
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import ObjectStates, TrackExistence
 
 from .types import MoverDetections

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from impala_flow._session import Session
 from impala_flow.plugins import hookimpl, load_registry
-from impala_flow.session import Session
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .conftest import Installed

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from impala_flow import Component, Input, OutOfHistory, Output, Param, Source
-from impala_flow.executor import OfflineExecutor
-from impala_flow.network import Network
-from impala_flow.ports import DEFAULT_MAXBYTES, data_nbytes
-from impala_flow.summary import ComponentError, RunSummary
+from impala_flow._network import Network
+from impala_flow._offline import OfflineExecutor
+from impala_flow._ports import DEFAULT_MAXBYTES, data_nbytes
+from impala_flow._summary import ComponentError, RunSummary
 from impala_flow.testing import CollectingSink, connect
 
 from .test_runtime import HANG_S, run_rt
@@ -269,11 +269,11 @@ connections:
 def test_impala_flow_run_prints_the_byte_drops_or_refuses_in_one_line(
         tmp_path, monkeypatch, capsys, overflow: str) -> None:
     import impala_flow.cli
-    import impala_flow.cli.run
-    from impala_flow.session import Session
+    import impala_flow.cli._run
+    from impala_flow._session import Session
     from impala_flow.testing import plugin_of
 
-    monkeypatch.setattr(impala_flow.cli.run, "open_session", lambda: Session(
+    monkeypatch.setattr(impala_flow.cli._run, "open_session", lambda: Session(
         extra_plugins={"t": plugin_of(Arrays, Pair, CollectingSink)}, entrypoints=False))
     graph = tmp_path / "g.yaml"
     graph.write_text(GRAPH.format(overflow=overflow))

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param, Periodic, Source
-from impala_flow.clock import FakeClock
+from impala_flow._clock import FakeClock
 from impala_flow.testing import CollectingSink, run_graph_text
 
 MS = 1_000_000

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from impala_flow import Component, ComponentError, Input, Network, OfflineExecutor, Output, Param, Source
-from impala_flow.ports import OutputPort
-from impala_flow.runtime import RealTimeExecutor
-from impala_flow.summary import SKIP_LOG_LIMIT
+from impala_flow._ports import OutputPort
+from impala_flow._realtime import RealTimeExecutor
+from impala_flow._summary import SKIP_LOG_LIMIT
 from impala_flow.testing import CollectingSink, ScriptedSource, connect, run_graph_text
 
 from .components import Boom, Counter

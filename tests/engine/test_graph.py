@@ -8,9 +8,9 @@ import textwrap
 import pytest
 
 from impala_flow import Component, Input, Output
-from impala_flow.build import to_dot
-from impala_flow.graph import GraphError
-from impala_flow.session import Session
+from impala_flow._build import to_dot
+from impala_flow._graph import GraphError
+from impala_flow._session import Session
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .components import Boom, Counter, Scale

@@ -2,7 +2,7 @@
 
 import os
 
-from impala_flow.paths import output_clash
+from impala_flow._paths import output_clash
 
 
 def test_output_equal_inside_over_and_apart(tmp_path):

@@ -1,4 +1,4 @@
-"""The real-time threaded executor (impala_flow.runtime) and clean stops on signals.
+"""The real-time threaded executor (impala_flow._realtime) and clean stops on signals.
 
 No assertion here depends on the machine's speed: timeouts only guard against hangs, and
 drop counts are made deterministic by gating the consumers with events.
@@ -19,12 +19,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from impala_flow.clock import MissionClock
-from impala_flow.component import Component, Input, Output, Param, Periodic, Source
-from impala_flow.network import Network
-from impala_flow.runtime import RealTimeExecutor
-from impala_flow.session import Session
-from impala_flow.summary import ComponentError, RunSummary
+from impala_flow._clock import MissionClock
+from impala_flow._component import Component, Input, Output, Param, Periodic, Source
+from impala_flow._network import Network
+from impala_flow._realtime import RealTimeExecutor
+from impala_flow._session import Session
+from impala_flow._summary import ComponentError, RunSummary
 from impala_flow.testing import CollectingSink, ScriptedSource, connect, plugin_of
 
 HANG_S = 60.0  # only to turn a hang into a failure
@@ -514,11 +514,11 @@ def test_session_runs_a_realtime_yaml_graph() -> None:
 SCRIPT = r'''
 import sys, time
 from pathlib import Path
-from impala_flow.component import Component, Input, Output, Param, Source
-from impala_flow.session import Session
+from impala_flow._component import Component, Input, Output, Param, Source
+from impala_flow._session import Session
 from impala_flow.testing import plugin_of
 import impala_flow.cli
-import impala_flow.cli.run
+import impala_flow.cli._run
 
 OUT = Path(sys.argv[1])
 
@@ -567,7 +567,7 @@ class Writer(Marked, Component):
         super().stop()
 
 
-impala_flow.cli.run.open_session = lambda: Session(
+impala_flow.cli._run.open_session = lambda: Session(
     extra_plugins={"t": plugin_of(Feed, Mid, Writer)}, entrypoints=False)
 sys.exit(impala_flow.cli.main(["run", sys.argv[2], "--no-progress"]))
 '''

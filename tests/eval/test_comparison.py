@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from impala_eval.comparison import TrajectoryComparison
-from impala_flow.component import Output, Param, Source
-from impala_flow.graph import GraphError
+from impala_flow._component import Output, Param, Source
+from impala_flow._graph import GraphError
+from impala_flow._session import Session
 from impala_flow.msgs import Pose2D, Trajectory2D
-from impala_flow.session import Session
 from impala_flow.testing import run_graph_text
 
 R_M, V_MPS, DURATION_S = 50.0, 5.0, 60  # a circle arc of 300 m

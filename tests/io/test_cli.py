@@ -21,7 +21,7 @@ from impala_flow.io import CodecRegistry, MissionWriter
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=2048,
-                       metadata={"impala_flow.graph": {"yaml": "name: g"}}) as w:
+                       metadata={"impala_flow._graph": {"yaml": "name: g"}}) as w:
         w.add_topic("slam/pose", msgs.Pose2D)
         w.add_topic("odo/speed", msgs.Speed)
         w.add_topic("count", int)

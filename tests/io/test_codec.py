@@ -23,7 +23,7 @@ from impala_flow.io import (
     SchemaMismatchError,
     UnknownSchemaError,
 )
-from impala_flow.io.codec import MESSAGE_ENCODING, SCHEMA_ENCODING
+from impala_flow.io._codec import MESSAGE_ENCODING, SCHEMA_ENCODING
 from impala_flow.msgs import message
 
 from .helpers import assert_same

@@ -11,10 +11,10 @@ import pytest
 import yaml
 
 from impala_flow import msgs
-from impala_flow.clock import FakeClock
-from impala_flow.component import Component, Input, Output, Param, Source
+from impala_flow._clock import FakeClock
+from impala_flow._component import Component, Input, Output, Param, Source
+from impala_flow._session import Session
 from impala_flow.io import MissionReader, MissionWriter
-from impala_flow.session import Session
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .helpers import assert_same
@@ -96,7 +96,7 @@ def test_graph_record_section_records_patterns_with_metadata(tmp_path: Path) -> 
     assert info.compression == "lz4" and not info.truncated
     assert len(poses) == 30 and poses[3].x_m == pytest.approx(0.6)
     assert {c.topic for c in info.channels} >= {"/foxglove/car/pose"}
-    graph = yaml.safe_load(info.metadata["impala_flow.graph"]["yaml"])
+    graph = yaml.safe_load(info.metadata["impala_flow._graph"]["yaml"])
     assert graph["components"]["car"]["type"] == "test.Drive"
     assert "car" in info.metadata["impala_flow.params"]
     assert info.metadata["impala_flow.plugins"]["io"]
@@ -146,7 +146,7 @@ def test_max_and_paced_replay_give_identical_outputs(tmp_path: Path) -> None:
             "sink": {"type": "test.CollectingSink"}},
             "connections": ["mission.car/speed -> sink.x"]})
         net = s.build(s.load_text(text))
-        from impala_flow.executor import OfflineExecutor
+        from impala_flow._offline import OfflineExecutor
 
         OfflineExecutor(net, clock).run()
         sink = net.components["sink"]

@@ -10,7 +10,7 @@ import pytest
 
 from impala_flow import msgs
 from impala_flow.io import CodecError, CodecRegistry, MissionReader, MissionWriter
-from impala_flow.io.codec import UpgradingCodec
+from impala_flow.io._codec import UpgradingCodec
 
 CFG = msgs.RadarConfig("r", 77e9, 1e9, 1e3, 1e3, 4, 0.02, 4.0, 8, 1.0, 100.0, doppler=False, range_offset_m=-0.31)
 

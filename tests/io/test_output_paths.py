@@ -11,8 +11,8 @@ import pytest
 import yaml
 
 from impala_flow import msgs
+from impala_flow._offline import MAX_TIMER_FIRINGS
 from impala_flow.cli import main
-from impala_flow.executor import MAX_TIMER_FIRINGS
 from impala_flow.io import CodecRegistry, MissionWriter
 
 YEAR_NS = 365 * 86_400 * 10**9

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from impala_flow._component import ParamError
 from impala_flow.cli import main
-from impala_flow.component import ParamError
 from impala_flow.io import MissionReader
 from impala_radar.datasets import DatasetError, ImportReport, iter_mission
 from impala_radar.datasets.boreas import BOREAS_POSE_COLUMNS

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from impala_flow.cli import main
-from impala_flow.io.reader import MissionReader
+from impala_flow.io._reader import MissionReader
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_slam.ekf_core import PoseEkf

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from impala_flow.cli import main
-from impala_flow.io.reader import MissionReader
+from impala_flow.io._reader import MissionReader
 
 from .test_oxford import GRAPH
 

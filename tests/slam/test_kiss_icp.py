@@ -61,7 +61,7 @@ def scene_beams(turns: int, gap: int = -1, seed: int = 5, rest_s: float = REST_S
     """Beams of ``turns`` turns seeing ``scene`` from the moving vehicle (each beam at its own
     pose: the turn is distorted by the motion), 30 dB over exponential noise; turn ``gap`` and the
     two after it are missing (a hole in the log)."""
-    from impala_flow.component import Output, Param, Source
+    from impala_flow._component import Output, Param, Source
 
     class SceneBeams(Source):
         out = Output(RadarBeam)

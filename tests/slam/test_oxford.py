@@ -115,7 +115,7 @@ def test_the_report_draws_the_pairs(oxford_run):
 def test_fmt_registration_beside_rslam_on_the_same_pairs(oxford_run):
     """slam.FmtRegistration in the same graph (issue 14): its transforms, read back with the
     project's reader, against the CSV's pairs; R-SLAM's per-pair error printed beside."""
-    from impala_flow.io.reader import MissionReader
+    from impala_flow.io._reader import MissionReader
 
     folder, out = oxford_run
     truth = _truth_rows(folder)

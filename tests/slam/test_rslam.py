@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_flow.component import Output, Source
+from impala_flow._component import Output, Source
 from impala_flow.msgs import Grid, Pose2D, Speed, YawRate
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_slam import DeadReckoning, MatchParams, RSlam, RSlamConfig, RSlamCore, TileMap, match_to_map

@@ -10,10 +10,10 @@ from .conftest import ROOT, env_without_plugin_blocks
 
 CODE = """
 import sys
-import impala_flow, impala_flow.sweep, impala_flow.cli.sweep
+import impala_flow, impala_flow.sweep, impala_flow.cli._sweep
 from impala_flow.cli import make_parser
 make_parser().parse_args(["sweep", "x.yaml", "-o", "out"])
-from impala_flow.session import Session
+from impala_flow._session import Session
 Session()
 loaded = sorted(m for m in sys.modules if m.split(".")[0] in ("dask", "distributed"))
 print(loaded)

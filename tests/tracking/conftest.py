@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import yaml
 
+from impala_flow._session import Session
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
-from impala_flow.session import Session
 from impala_radar.sim.scenario import scenario_path
 
 GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "datmo.yaml"

@@ -10,8 +10,8 @@ import json
 
 import numpy as np
 
+from impala_flow._session import Session
 from impala_flow.io import CodecRegistry, MissionReader, MissionWriter
-from impala_flow.session import Session
 
 from .conftest import GRAPH
 

@@ -25,7 +25,7 @@ import time
 import numpy as np
 from scipy import ndimage
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import RadarBeam, RadarConfig, RadarDetections
 
 from .peaks import cfar_threshold

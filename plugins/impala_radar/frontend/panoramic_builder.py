@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Grid, Pose2D, RadarBeam, RadarScan, Speed, Twist2D, YawRate, wrap_angle
 
 from .panoramic import (

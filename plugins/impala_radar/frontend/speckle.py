@@ -22,7 +22,7 @@ from collections import deque
 import cv2
 import numpy as np
 
-from impala_flow.component import Component, Input, Output, Param
+from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Grid
 
 __all__ = ["SpeckleFilter", "registration_affine", "multilook", "threshold_image", "enl"]

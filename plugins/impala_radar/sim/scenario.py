@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from impala_flow import YamlError, load_yaml, location
 from impala_flow.msgs import RadarConfig
-from impala_flow.yamlloc import YamlError, load_yaml, location
 
 from .presets import preset
 from .scenes import SCENES

@@ -6,8 +6,7 @@ class added here becomes ``example.<ClassName>`` in YAML graphs.
 
 from __future__ import annotations
 
-from impala_flow.plugins import hookimpl
-from impala_flow.registry import Registry
+from impala_flow.plugins import Registry, hookimpl
 
 from .components import Counter, CsvWriter, MovingAverage, Threshold
 

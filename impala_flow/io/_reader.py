@@ -9,7 +9,7 @@ scan, every chunk CRC-checked; :meth:`MissionReader.info` then says ``truncated`
 many messages were recovered. Messages come in (log time, file order) order, as the
 official ``mcap`` reader gives them once sorted by log time.
 
-Bad files raise one :class:`~impala_flow.io.errors.RecordingError` subclass with a one-line
+Bad files raise one :class:`~impala_flow.io._errors.RecordingError` subclass with a one-line
 message naming the file and what is wrong. With ``strict=False`` (default) whatever is still
 valid stays readable: a truncated file is recovered, a damaged record or a corrupt chunk is
 skipped and listed in ``info().problems`` (one line naming the file and the offset), and the
@@ -32,16 +32,16 @@ import numpy as np
 from mcap.opcode import Opcode
 
 from . import _mcapfile as mf
-from .codec import Codec
-from .errors import (
+from ._codec import Codec
+from ._errors import (
     CodecError,
     CorruptChunkError,
     RecordingError,
     TruncatedRecordingError,
     UnknownSchemaError,
 )
-from .foxglove import MIRROR_KEY
-from .registry import CodecRegistry
+from ._foxglove import MIRROR_KEY
+from ._registry import CodecRegistry
 
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
 

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import networkx as nx
 
-from ..build import to_dot
-from ..component import Source
-from ..network import Network
+from .._build import to_dot
+from .._component import Source
+from .._network import Network
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._common import add_graph_args, check_output_over_inputs, check_writable_file, load_spec, open_session
+from .helpers import add_graph_args, check_output_over_inputs, check_writable_file, load_spec, open_session
 
 #: resolution bounds of --png (a picture of a few inches: 10^5 dpi would be gigabytes)
 MIN_DPI, MAX_DPI = 10, 1200

@@ -25,8 +25,8 @@
   a variable given on the command line or comes from ``--set``: those stay relative to the
   working directory.
 
-Validation (:func:`impala_flow.build.validate`) reports every problem at once, each with
-file:line:col. The YAML is read with the safe loader only (see :mod:`impala_flow.yamlloc`).
+Validation (:func:`impala_flow._build.validate`) reports every problem at once, each with
+file:line:col. The YAML is read with the safe loader only (see :mod:`impala_flow._yamlloc`).
 """
 
 from __future__ import annotations
@@ -38,10 +38,10 @@ from typing import Any
 
 import yaml
 
-from .build import validate
-from .paths import resolve_paths
-from .registry import Registry
-from .spec import (
+from ._build import validate
+from ._paths import resolve_paths
+from ._registry import Registry
+from ._spec import (
     CONNECTION,
     ComponentSpec,
     ConnectionSpec,
@@ -53,7 +53,7 @@ from .spec import (
     component_id_problem,
     did_you_mean,
 )
-from .yamlloc import (
+from ._yamlloc import (
     MAX_BYTES,
     Loc,
     LocDict,

@@ -7,10 +7,10 @@ import json
 import sys
 from pathlib import Path
 
-from ..paths import not_writable
-from ..schema import graph_schema
+from .._paths import not_writable
+from .._schema import graph_schema
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._common import open_session
+from .helpers import open_session
 
 __all__ = ["add_parser", "run"]
 

@@ -1,7 +1,7 @@
 """RunSummary: what a run did, what it dropped, what failed. Nothing is lost silently.
 
 Invalid samples (a message whose ``invalid_reason()`` is not None, dropped where it enters an
-input: :mod:`impala_flow.ports`) are counted in ``inputs[...]["invalid"]`` and by reason in
+input: :mod:`impala_flow._ports`) are counted in ``inputs[...]["invalid"]`` and by reason in
 ``inputs[...]["invalid_reasons"]``; :meth:`RunSummary.format` prints one ``INVALID at`` line
 per input with the count of each reason, and they count in :attr:`RunSummary.total_lost`.
 

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..msgs._base import is_message, schema_name, schema_version
-from .errors import CodecError
+from ._errors import CodecError
 
 __all__ = [
     "Codec", "MessageCodec", "UpgradingCodec", "BuiltinCodec", "builtin_codecs",

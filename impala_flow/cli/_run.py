@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._common import (
+from .helpers import (
     add_graph_args,
     check_output_over_inputs,
     check_speed,

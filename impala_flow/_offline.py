@@ -66,11 +66,11 @@ from typing import Any
 
 import networkx as nx
 
-from .clock import ReplayClock
-from .component import Component, Source
-from .network import Network
-from .ports import InputPort, OutputTypeError
-from .summary import ComponentError, RunSummary, log_skip
+from ._clock import ReplayClock
+from ._component import Component, Source
+from ._network import Network
+from ._ports import InputPort, OutputTypeError
+from ._summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters", "event_order",
            "check_source_time", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]

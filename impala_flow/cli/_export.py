@@ -30,13 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from ..component import MAX_SECONDS
+from .._component import MAX_SECONDS
+from .._paths import not_writable, output_clash
 from ..io import MissionReader, RecordingError
 from ..msgs import is_message
-from ..paths import not_writable, output_clash
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._common import check_writable_file
-from .info import codecs
+from ._info import codecs
+from .helpers import check_writable_file
 
 #: arrays up to this many values become columns; larger ones need --npy
 SMALL_ARRAY = 16

@@ -20,9 +20,9 @@ import math
 from typing import Any
 
 from . import __version__
-from .component import Component, Param
-from .registry import Registry
-from .spec import MIN_SPEED
+from ._component import Component, Param
+from ._registry import Registry
+from ._spec import MIN_SPEED
 
 __all__ = ["graph_schema", "CONNECTION_PATTERN", "VARIABLE_PATTERN"]
 

@@ -11,15 +11,15 @@ from typing import Any
 
 import yaml
 
-from ..build import RECORDER_TYPE
-from ..component import Source
-from ..executor import timer_problems
-from ..network import Network
-from ..paths import not_writable
-from ..session import Session
-from ..spec import GraphError, checked_speed
-from ..summary import ComponentError, RunSummary
-from ..yamlloc import YamlError, load_value
+from .._build import RECORDER_TYPE
+from .._component import Source
+from .._network import Network
+from .._offline import timer_problems
+from .._paths import not_writable
+from .._session import Session
+from .._spec import GraphError, checked_speed
+from .._summary import ComponentError, RunSummary
+from .._yamlloc import YamlError, load_value
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 
 __all__ = ["add_graph_args", "open_session", "load_spec", "Progress", "run_network", "check_speed",
@@ -83,7 +83,7 @@ def check_output_over_inputs(path: str, option: str, spec: Any, session: Session
                              extra: tuple[tuple[str, str], ...] = ()) -> None:
     """Refuse (exit 2) an output file of the command that is, or lies inside, a file or
     folder the graph reads, the graph file itself, or one of ``extra`` (path, what)."""
-    from ..paths import graph_files, output_clash
+    from .._paths import graph_files, output_clash
 
     inputs = [(f.path, f"the input of {f.who}") for f in graph_files(spec, session.registry) if f.kind == "read"]
     clash = output_clash(path, [*inputs, (spec.file, "the graph file"), *extra])

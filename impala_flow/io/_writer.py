@@ -16,11 +16,11 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
+from ._codec import Codec
+from ._errors import CodecError
+from ._foxglove import MIRROR_KEY, TF_SCHEMA, TF_TOPIC, FoxgloveMirror, foxglove_topic, frame_transforms, mirror_for
 from ._mcapwriter import McapWriter
-from .codec import Codec
-from .errors import CodecError
-from .foxglove import MIRROR_KEY, TF_SCHEMA, TF_TOPIC, FoxgloveMirror, foxglove_topic, frame_transforms, mirror_for
-from .registry import VERSION_KEY, CodecRegistry
+from ._registry import VERSION_KEY, CodecRegistry
 
 __all__ = ["MissionWriter", "COMPRESSIONS"]
 

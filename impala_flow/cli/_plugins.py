@@ -6,10 +6,10 @@ import argparse
 import json
 from typing import Any
 
-from ..component import Component, Input, Output, Param, Source
+from .._component import Component, Input, Output, Param, Source
+from .._registry import Registry
 from ..msgs import is_message, schema_name
-from ..registry import Registry
-from ._common import open_session
+from .helpers import open_session
 
 __all__ = ["add_parser", "run", "describe_plugins", "describe_component"]
 

@@ -14,9 +14,9 @@ class Sample:
     uses the same unit); ``seq`` counts the samples of the output that emitted it;
     ``origin`` names that output as ``component.port``. Arrays inside ``data`` are
     read-only once emitted, so a sample is shared, never copied, by every input it
-    reaches, and checked once for validity (:mod:`impala_flow.ports`). ``nbytes`` caches the
+    reaches, and checked once for validity (:mod:`impala_flow._ports`). ``nbytes`` caches the
     size of ``data`` once an input bounded in bytes has measured it (-1 until then; see
-    :func:`impala_flow.ports.sample_nbytes`).
+    :func:`impala_flow._ports.sample_nbytes`).
     """
 
     __slots__ = ("timestamp", "data", "seq", "origin", "nbytes", "invalid")

@@ -1,7 +1,7 @@
 """Files a graph reads and writes: relative paths resolved, clobbering refused at validation.
 
 A component declares its path parameters with ``Param(str, path=KIND)``
-(:data:`~impala_flow.component.PATH_KINDS`); ``record.path`` is a file written. A relative
+(:data:`~impala_flow._component.PATH_KINDS`); ``record.path`` is a file written. A relative
 path is resolved against the folder of the graph file it is written in (like
 ``include:``), unless it starts with a variable given on the command line or comes from
 ``--set``: it then stays relative to the working directory where the user typed it.
@@ -22,9 +22,9 @@ import stat
 from dataclasses import dataclass
 from pathlib import PurePath
 
-from .registry import Registry
-from .spec import GraphSpec, Problem
-from .yamlloc import Loc
+from ._registry import Registry
+from ._spec import GraphSpec, Problem
+from ._yamlloc import Loc
 
 __all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash",
            "not_writable"]

@@ -1,8 +1,8 @@
 """Validation of a loaded :class:`GraphSpec` against the installed plugins, and building
 the :class:`Network` an executor runs. Every problem is collected, none stops the scan.
 
-Layering: :mod:`impala_flow.spec` (the model and its problems) <- this module (validation
-and construction) <- :mod:`impala_flow.graph` (reading YAML files, then validating).
+Layering: :mod:`impala_flow._spec` (the model and its problems) <- this module (validation
+and construction) <- :mod:`impala_flow._graph` (reading YAML files, then validating).
 """
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ from __future__ import annotations
 import fnmatch
 from typing import Any
 
-from .component import Component, Input, Output
-from .network import CycleError, Network
-from .paths import check_paths
-from .registry import Registry
-from .spec import GraphError, GraphSpec, Problem, closest, did_you_mean
-from .yamlloc import Loc, brief
+from ._component import Component, Input, Output
+from ._network import CycleError, Network
+from ._paths import check_paths
+from ._registry import Registry
+from ._spec import GraphError, GraphSpec, Problem, closest, did_you_mean
+from ._yamlloc import Loc, brief
 
 __all__ = ["validate", "build", "to_dot", "RECORDER_TYPE", "resolve_record"]
 
@@ -98,7 +98,7 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
     """Every problem of ``spec``: an empty graph, types, parameters, ports, port types,
     required inputs, cycles without a delay, record streams, a live source in an offline
     (``mode: replay``) graph, files written over files read or in folders that cannot be
-    created (:func:`impala_flow.paths.check_paths`)."""
+    created (:func:`impala_flow._paths.check_paths`)."""
     problems: list[Problem] = []
     if not spec.components:
         problems.append(Problem(Loc(spec.file, 1, 1), "the graph has no components: nothing to run"))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ..executor import timer_problems
+from .._offline import timer_problems
 from . import EXIT_USAGE, CommandError
-from ._common import add_graph_args, load_spec, open_session
+from .helpers import add_graph_args, load_spec, open_session
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

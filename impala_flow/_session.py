@@ -15,14 +15,14 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from .build import build
-from .clock import ReplayClock, parse_speed
-from .executor import OfflineExecutor
-from .graph import GraphSpec, load_graph, load_graph_text
-from .network import Network
+from ._build import build
+from ._clock import ReplayClock, parse_speed
+from ._graph import GraphSpec, load_graph, load_graph_text
+from ._network import Network
+from ._offline import OfflineExecutor
+from ._registry import Registry
+from ._summary import RunSummary
 from .plugins import load_registry, make_plugin_manager, warn_broken
-from .registry import Registry
-from .summary import RunSummary
 
 __all__ = ["Session", "stop_on_signals"]
 
@@ -86,7 +86,7 @@ class Session:
             speed = spec.speed if speed is None else speed
         with stop_on_signals(self.stop_event):
             if mode == "realtime":
-                from .runtime import RealTimeExecutor
+                from ._realtime import RealTimeExecutor
 
                 return RealTimeExecutor(net, stop_event=self.stop_event, progress=progress).run()
             clock = ReplayClock(parse_speed(speed))

@@ -82,14 +82,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._sample import Sample
+from ._summary import ComponentError
 from .msgs import freeze
 from .msgs._base import _freezers, _noop
-from .msgs.geometry import wrap_angle
-from .sample import Sample
-from .summary import ComponentError
+from .msgs._geometry import wrap_angle
 
 if TYPE_CHECKING:
-    from .component import Component, Input, Output
+    from ._component import Component, Input, Output
 
 __all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput", "OutputTypeError",
            "DEFAULT_MAXBYTES", "data_nbytes", "sample_nbytes"]

@@ -6,8 +6,8 @@ import json
 from collections.abc import Iterator
 from typing import Any
 
-from .codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
-from .errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
+from ._codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
+from ._errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
 
 __all__ = ["CodecRegistry", "VERSION_KEY"]
 
@@ -48,7 +48,7 @@ class CodecRegistry:
     @classmethod
     def from_plugins(cls, plugins: Any) -> CodecRegistry:
         """Standard types plus the message types and codecs of an engine
-        :class:`impala_flow.registry.Registry` (what the plugins of a run registered)."""
+        :class:`impala_flow._registry.Registry` (what the plugins of a run registered)."""
         reg = cls.with_standard_types()
         owner = getattr(plugins, "owner", {})
         for name, t in getattr(plugins, "types", {}).items():
@@ -75,7 +75,7 @@ class CodecRegistry:
         return codec
 
     def add_codec(self, codec: Codec, plugin: str = "?") -> None:
-        """Register a codec (custom ones follow :class:`impala_flow.io.codec.Codec`)."""
+        """Register a codec (custom ones follow :class:`impala_flow.io._codec.Codec`)."""
         key = (codec.schema_name, int(codec.schema_version))
         prev = self._by_schema.get(key)
         if prev is not None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from .component import Component
+from ._component import Component
 from .msgs import BUILTIN_TYPES, is_message, schema_name
 
 __all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin"]

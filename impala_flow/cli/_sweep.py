@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..sweep.spec import MAX_TASKS, MAX_TASKS_CEILING
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
-from ._common import open_session
+from .helpers import open_session
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -85,7 +85,7 @@ def _check_args(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..spec import GraphError
+    from .._spec import GraphError
     from ..sweep import SweepError, check_sweep, load_sweep
     from ..sweep.task import one_line
 

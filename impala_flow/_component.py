@@ -19,7 +19,7 @@ interrupted or another component failed: that is where summaries and reports are
 ``stop()`` also runs when the component's own ``start()`` raised, so it can release what
 ``start()`` took (write it to cope with a half-done start); ``summary()`` is asked only of
 components whose ``start()`` returned. Data emitted on an output must fit its declared type
-(checked by class; see :mod:`impala_flow.ports`).
+(checked by class; see :mod:`impala_flow._ports`).
 
 A :class:`Source` has no inputs; its :meth:`Source.generate` yields ``(t_ns, port,
 data)`` in non-decreasing time. Offline, the executor pulls the earliest pending sample
@@ -39,7 +39,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
-from .ports import DEFAULT_MAXBYTES, OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
+from ._ports import DEFAULT_MAXBYTES, OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
 
 __all__ = [
     "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
@@ -129,12 +129,12 @@ class Param:
         elif t is list and isinstance(value, tuple):
             value = list(value)
         if not isinstance(value, t) or (t is int and isinstance(value, bool)):
-            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+            from ._yamlloc import brief  # noqa: PLC0415 - the error path only
 
             kind = "list" if isinstance(value, list) else "dict" if isinstance(value, dict) else type(value).__name__
             raise ParamError(f"expected {t.__name__}, got {kind} {brief(value)}")
         if self.choices is not None and value not in self.choices:
-            from .yamlloc import brief  # noqa: PLC0415 - the error path only
+            from ._yamlloc import brief  # noqa: PLC0415 - the error path only
 
             raise ParamError(f"{brief(value)} is not one of {list(self.choices)}")
         nums = value if isinstance(value, list) else [value]
@@ -200,10 +200,10 @@ class Input(_PortDeclaration):
     half-window in seconds. ``history``: seconds of samples kept for ``at``/``between``.
     ``maxsize`` (samples), ``maxbytes`` (bytes, 64 MiB by default; it bounds the history
     buffer too) and ``overflow`` (``block``, ``drop_oldest``, ``drop_newest``) bound the
-    FIFO (see :mod:`impala_flow.ports`). ``required=False`` lets the input stay
+    FIFO (see :mod:`impala_flow._ports`). ``required=False`` lets the input stay
     unconnected. ``angular=True`` makes ``at()`` interpolate numbers as angles.
     ``validate=False`` lets invalid messages (non-finite, impossible values) through instead
-    of dropping and counting them (:mod:`impala_flow.ports`).
+    of dropping and counting them (:mod:`impala_flow._ports`).
     """
 
     def __init__(
@@ -336,7 +336,7 @@ class Component:
         problems: dict[str, str] = {}
         for k in params:
             if k not in cls.__params__:
-                from .graph import closest, did_you_mean
+                from ._graph import closest, did_you_mean
 
                 hint = closest(k, cls.__params__)
                 problems[k] = "unknown parameter" + did_you_mean(hint)

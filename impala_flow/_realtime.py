@@ -4,7 +4,7 @@ Threads
 -------
 - **one thread per source**, iterating ``generate()``. A live source (``live = True``)
   stamps its samples with ``self.now_ns()``, which the executor points at one shared
-  :class:`~impala_flow.clock.MissionClock`: every sensor has the same mission time base.
+  :class:`~impala_flow._clock.MissionClock`: every sensor has the same mission time base.
   A non-live source used live (a replayer, a simulator) is *paced*: its samples are
   released when the mission clock reaches them and re-stamped on the mission clock, the
   earliest first sample of all non-live sources being mapped to the start of the run
@@ -19,7 +19,7 @@ Threads
   triggered: with the ``block`` overflow policy a ``process`` call can wait inside
   ``emit`` for room downstream, and a smaller pool could then starve the consumer it is
   waiting for (pass ``workers=`` to cap it when no input blocks).
-- **a timer thread** (only when some component declares :class:`~impala_flow.component.Periodic`
+- **a timer thread** (only when some component declares :class:`~impala_flow._component.Periodic`
   timers) puts timer triggers in the mailboxes at every multiple of the period on
   mission time; ``process(t)`` receives that multiple. A tick still waiting in the mailbox
   when the next one is due is not queued twice: it is counted as ``missed_ticks`` in the
@@ -74,19 +74,19 @@ raises. Then, in this order:
    ``start()`` was called (also one whose ``start()`` raised), in graph order, on the
    calling thread; ``summary()`` is asked only of those whose ``start()`` returned;
 5. the summary is completed (``interrupted`` flag, drops, per-component counts), and a
-   :class:`~impala_flow.summary.ComponentError` is raised if a component failed, with
+   :class:`~impala_flow._summary.ComponentError` is raised if a component failed, with
    the summary attached as ``error.summary``. It is the first failure; later ones (another
    component, a ``stop()`` or ``summary()`` that raised) are lines of ``summary.errors``.
 
 Equal timestamps: samples are delivered as they come; the executor cannot wait for a
 sample that may never arrive, so the offline equal-timestamp rule (see
-:mod:`impala_flow.executor`) is not guaranteed live: read equal-time streams through a sync
+:mod:`impala_flow._offline`) is not guaranteed live: read equal-time streams through a sync
 group or ``at(t, clamp=True)``. A ``block`` input that makes its producer wait counts the
 waits and their duration (``blocked``, ``blocked_ns``: BACKPRESSURE in the summary).
 Timestamps outside int64 are refused at the source, as offline.
 
 A component listed with ``on_error: skip`` in ``network.on_error`` has its failing calls
-counted (``skipped``) instead, the first few logged (:func:`~impala_flow.summary.log_skip`);
+counted (``skipped``) instead, the first few logged (:func:`~impala_flow._summary.log_skip`);
 a failing source then just ends.
 """
 
@@ -102,17 +102,17 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
-from .clock import MissionClock
-from .component import Component, Source
-from .executor import check_source_time, collect_counters, event_order, stop_components
-from .network import Network
-from .ports import InputPort, SyncGroup
-from .sample import Sample
-from .summary import ComponentError, RunSummary, log_skip
+from ._clock import MissionClock
+from ._component import Component, Source
+from ._network import Network
+from ._offline import check_source_time, collect_counters, event_order, stop_components
+from ._ports import InputPort, SyncGroup
+from ._sample import Sample
+from ._summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["RealTimeExecutor", "run_realtime", "BATCH"]
 
-log = logging.getLogger("impala_flow.runtime")
+log = logging.getLogger("impala_flow._realtime")
 
 ProgressFn = Callable[[int, int | None], None]
 

@@ -24,7 +24,7 @@ RadarScan           foxglove.RawImage         ``32FC1``, one row per beam, one c
 
 Every other type (speeds, yaw rates, twists, any plugin's message, plain numbers) is
 mirrored as JSON with a JSON Schema generated from its dataclass
-(:mod:`impala_flow.io.jsonview`), so every stream of a recording has a channel generic
+(:mod:`impala_flow.io._jsonview`), so every stream of a recording has a channel generic
 MCAP tools and Foxglove's Plot panel decode. The mirror channels carry the metadata
 ``impala_flow.mirror_of = <topic>``; readers of impala types skip them.
 """
@@ -61,7 +61,7 @@ from google.protobuf.duration_pb2 import Duration
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from .. import msgs
-from . import jsonview
+from . import _jsonview as jsonview
 
 __all__ = ["FoxgloveMirror", "mirror_for", "foxglove_topic", "file_descriptor_set",
            "MIRROR_KEY", "FOXGLOVE_PREFIX", "TF_TOPIC", "frame_transforms"]
@@ -263,7 +263,7 @@ _cache: dict[tuple[type, bool], FoxgloveMirror | None] = {}
 
 def mirror_for(t: type, json_views: bool = False) -> FoxgloveMirror | None:
     """The Foxglove mirror of type ``t``: its Foxglove schema (table above), else, with
-    ``json_views``, its JSON view (:mod:`impala_flow.io.jsonview`); None for ``None``."""
+    ``json_views``, its JSON view (:mod:`impala_flow.io._jsonview`); None for ``None``."""
     key = (t, json_views)
     if key in _cache:
         return _cache[key]

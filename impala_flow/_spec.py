@@ -1,8 +1,8 @@
 """The graph spec model and its problems: the bottom layer of graph handling.
 
-:mod:`impala_flow.graph` reads YAML files into a :class:`GraphSpec`;
-:mod:`impala_flow.build` validates a spec against the installed plugins and builds the
-:class:`~impala_flow.network.Network` it describes. Both import this module, never each
+:mod:`impala_flow._graph` reads YAML files into a :class:`GraphSpec`;
+:mod:`impala_flow._build` validates a spec against the installed plugins and builds the
+:class:`~impala_flow._network.Network` it describes. Both import this module, never each
 other's internals: ``spec`` <- ``build`` <- ``graph``.
 """
 
@@ -15,8 +15,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .clock import parse_speed
-from .yamlloc import Loc
+from ._clock import parse_speed
+from ._yamlloc import Loc
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "closest", "did_you_mean",

@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..graph import GraphError, resolve_graph
+from .._graph import GraphError, resolve_graph
+from .._summary import RunSummary
+from .._yamlloc import YamlError
 from ..io import MissionReader, RecordingError
-from ..summary import RunSummary
-from ..yamlloc import YamlError
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._common import (
+from .helpers import (
     add_graph_args,
     check_output_over_inputs,
     check_writable_file,
