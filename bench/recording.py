@@ -30,6 +30,7 @@ import numpy as np
 from mcap.reader import NonSeekingReader, make_reader
 from mcap.writer import CompressionType, IndexType, Writer
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.io import COMPRESSIONS, CodecRegistry, MissionReader, MissionWriter
 
@@ -148,12 +149,12 @@ def json_views(tmp: Path, n: int, reps: int, reg: CodecRegistry) -> dict[str, fl
     beam streams written with and without them (write time, file size)."""
     from impala_radar.sim.presets import IMPALA  # the beams' config, as a simulated mission has it
 
-    speeds = [msgs.Speed(1.0 + 1e-3 * i, 0.01) for i in range(n)]
+    speeds = [impala_msgs.Speed(1.0 + 1e-3 * i, 0.01) for i in range(n)]
     rng = np.random.default_rng(2)  # spectra that differ, as real ones do (zstd finds no repeats)
-    beams = [msgs.RadarBeam(0.01 * i, i // 360, i % 360, rng.random(IMPALA.n_bins, dtype=np.float32),
+    beams = [impala_msgs.RadarBeam(0.01 * i, i // 360, i % 360, rng.random(IMPALA.n_bins, dtype=np.float32),
                             rng.random(IMPALA.n_bins, dtype=np.float32), IMPALA) for i in range(n // 4)]
     out = {}
-    for label, items, t in (("scalar", speeds, msgs.Speed), ("beam", beams, msgs.RadarBeam)):
+    for label, items, t in (("scalar", speeds, impala_msgs.Speed), ("beam", beams, impala_msgs.RadarBeam)):
         sizes, times = {}, {}
         for views in (False, True):
             path = tmp / f"views-{label}-{views}.mcap"

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ._component import Component
-from .msgs import BUILTIN_TYPES, is_message, schema_name
+from .msgs import BUILTIN_TYPES, installed_packages, is_message, schema_name
 
 __all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin"]
 
@@ -66,6 +66,10 @@ class Registry:
         for t in BUILTIN_TYPES:
             self.types[schema_name(t)] = t
             self.owner[schema_name(t)] = "impala_flow"
+        for package in installed_packages():  # message packages (impala_msgs...): types, no components
+            for t in package.types:
+                self.types[schema_name(t)] = t
+                self.owner.setdefault(schema_name(t), package.name)
 
     def _claim(self, key: str) -> None:
         plugin = self._current.name if self._current else "impala_flow"

@@ -60,6 +60,8 @@ from google.protobuf.descriptor_pb2 import FileDescriptorSet
 from google.protobuf.duration_pb2 import Duration
 from google.protobuf.timestamp_pb2 import Timestamp
 
+import impala_msgs  # moves out of the engine with the Foxglove mirrors (impala_view)
+
 from .. import msgs
 from . import _jsonview as jsonview
 
@@ -193,7 +195,7 @@ _OBJECT_COLOR = Color(r=1.0, g=0.55, b=0.1, a=0.8)
 _OBJECT_LIFETIME = Duration(seconds=0, nanos=500_000_000)
 
 
-def _objects(o: msgs.ObjectStates, t_ns: int) -> bytes:
+def _objects(o: impala_msgs.ObjectStates, t_ns: int) -> bytes:
     xy = np.asarray(o.xy_m, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(o.v_xy_mps, dtype=np.float64).reshape(-1, 2)
     ids = np.asarray(o.ids).reshape(-1)
@@ -223,7 +225,7 @@ def _objects(o: msgs.ObjectStates, t_ns: int) -> bytes:
     return SceneUpdate(entities=entities).SerializeToString()
 
 
-def _detections(d: msgs.RadarDetections, t_ns: int) -> bytes:
+def _detections(d: impala_msgs.RadarDetections, t_ns: int) -> bytes:
     r = np.asarray(d.range_m, dtype=np.float64).reshape(-1)
     az = np.asarray(d.azimuth_rad, dtype=np.float64).reshape(-1)
     n = len(r)
@@ -238,7 +240,7 @@ def _detections(d: msgs.RadarDetections, t_ns: int) -> bytes:
                                   "beam": col(d.beam)})
 
 
-def _scan(sc: msgs.RadarScan, t_ns: int) -> bytes:
+def _scan(sc: impala_msgs.RadarScan, t_ns: int) -> bytes:
     p = np.asarray(sc.power, dtype=np.float64)
     if p.ndim != 2:
         p = p.reshape(len(np.asarray(sc.azimuth_rad)), -1) if p.size else np.zeros((0, 0))
@@ -254,9 +256,9 @@ _TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
     msgs.Trajectory2D: (PosesInFrame, _trajectory),
     msgs.Grid: (FxGrid, _grid),
     msgs.Points2D: (PointCloud, _points),
-    msgs.ObjectStates: (SceneUpdate, _objects),
-    msgs.RadarDetections: (PointCloud, _detections),
-    msgs.RadarScan: (RawImage, _scan),
+    impala_msgs.ObjectStates: (SceneUpdate, _objects),
+    impala_msgs.RadarDetections: (PointCloud, _detections),
+    impala_msgs.RadarScan: (RawImage, _scan),
 }
 _cache: dict[tuple[type, bool], FoxgloveMirror | None] = {}
 

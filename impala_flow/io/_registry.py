@@ -21,8 +21,8 @@ class CodecRegistry:
 
     A registry is built per run (never global). ``CodecRegistry()`` holds the builtin
     payloads (int, float, str, bytes, bool, numpy.ndarray, None);
-    :meth:`with_standard_types` adds every type of :mod:`impala_flow.msgs` (and readers of
-    the older versions listed in ``msgs.LEGACY_TYPES``).
+    :meth:`with_standard_types` adds every type of :mod:`impala_flow.msgs` and of the installed
+    message packages (and readers of the older versions they list in ``LEGACY``).
     """
 
     def __init__(self, *, builtins: bool = True) -> None:
@@ -35,14 +35,18 @@ class CodecRegistry:
 
     @classmethod
     def with_standard_types(cls) -> CodecRegistry:
-        """A registry with the builtin payloads and every :mod:`impala_flow.msgs` type."""
+        """A registry with the builtin payloads, every :mod:`impala_flow.msgs` type and every
+        type of the installed message packages (:func:`impala_flow.msgs.installed_packages`)."""
         from .. import msgs
 
         reg = cls()
         for t in msgs.BUILTIN_TYPES:
             reg.add_type(t, plugin=ENGINE)
-        for old, upgrade in msgs.LEGACY_TYPES:  # older versions, read and upgraded
-            reg.add_codec(UpgradingCodec(old, upgrade), plugin=ENGINE)
+        for package in msgs.installed_packages():
+            for t in package.types:
+                reg.add_type(t, plugin=package.name)
+            for old, upgrade in package.legacy:  # older versions, read and upgraded
+                reg.add_codec(UpgradingCodec(old, upgrade), plugin=package.name)
         return reg
 
     @classmethod

@@ -1,9 +1,13 @@
-"""Standard message types shared by the engine and every plugin.
+"""Message types: the contract every message follows, and the domain-free geometry types.
 
-See :mod:`impala_flow.msgs._base` for the contract a message type follows.
+See :mod:`impala_flow.msgs._base` for the contract a message type follows. Domain messages
+(radar beams, odometer, tracked objects) live in message packages beside the engine (the
+radar chain's is ``impala_msgs``), declared in the ``impala_flow.messages`` entry point group
+so every registry and recording reader knows them (:func:`installed_types`).
 """
 
 from ._base import freeze, invalid_fields, is_message, message, schema_name, schema_version
+from ._catalog import GROUP, MessagePackage, installed_packages, installed_types
 from ._geometry import (
     HEADING_UNKNOWN_VAR_RAD2,
     Grid,
@@ -15,35 +19,13 @@ from ._geometry import (
     Twist2D,
     wrap_angle,
 )
-from .sensors import (
-    CHIRP_DOWN,
-    CHIRP_UP,
-    SPEED_OF_LIGHT_MPS,
-    ObjectStates,
-    RadarBeam,
-    RadarBeamV1,
-    RadarConfig,
-    RadarDetections,
-    RadarScan,
-    Speed,
-    TrackExistence,
-    YawRate,
-    upgrade_radar_beam_v1,
-)
 
-BUILTIN_TYPES: tuple[type, ...] = (
-    Scalar, Pose2D, Twist2D, Trajectory2D, RelativePose2D, Grid, Points2D,
-    RadarConfig, RadarBeam, RadarScan, RadarDetections, Speed, YawRate, ObjectStates,
-    TrackExistence,
-)
-
-#: older versions of standard types, read from recordings and upgraded: (old type, upgrade function)
-LEGACY_TYPES: tuple[tuple[type, object], ...] = ((RadarBeamV1, upgrade_radar_beam_v1),)
+#: the engine's own message types
+BUILTIN_TYPES: tuple[type, ...] = (Scalar, Pose2D, Twist2D, Trajectory2D, RelativePose2D, Grid, Points2D)
 
 __all__ = [
     "message", "is_message", "schema_name", "schema_version", "freeze", "invalid_fields", "wrap_angle",
     "HEADING_UNKNOWN_VAR_RAD2",
     "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D",
-    "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
-    "TrackExistence", "SPEED_OF_LIGHT_MPS", "BUILTIN_TYPES", "LEGACY_TYPES", "CHIRP_UP", "CHIRP_DOWN",
+    "BUILTIN_TYPES", "GROUP", "MessagePackage", "installed_packages", "installed_types",
 ]

@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from impala_flow import Component, Input, Param
-from impala_flow.msgs import ObjectStates, Pose2D, TrackExistence
+from impala_flow.msgs import Pose2D
+from impala_msgs import ObjectStates, TrackExistence
 
 from .tracking_metrics import TrackingFrames, tracking_metrics
 

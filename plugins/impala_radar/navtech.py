@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+import impala_msgs
 from impala_flow import msgs
 
 from .datasets.common import counts_to_power, iter_mission, navtech_config
@@ -41,20 +42,22 @@ see :data:`~impala_radar.datasets.oxford.OXFORD_RANGE_RESOLUTION_M`), bin k at i
 import measures the rotation rate on the data instead.)"""
 
 
-def scan_to_beams(scan: NavtechScan, turn: int, config: msgs.RadarConfig = NAVTECH_CTS350X,
-                  azimuth_offset_deg: float = 0.0, db_per_count: float = 0.5) -> list[tuple[int, msgs.RadarBeam]]:
+def scan_to_beams(scan: NavtechScan, turn: int, config: impala_msgs.RadarConfig = NAVTECH_CTS350X,
+                  azimuth_offset_deg: float = 0.0,
+                  db_per_count: float = 0.5) -> list[tuple[int, impala_msgs.RadarBeam]]:
     """Valid rows of ``scan`` as ``(t_ns, RadarBeam)`` in acquisition order (linear power in
     ``up``, :func:`~impala_radar.datasets.common.counts_to_power`; ``down`` empty), azimuth
     ``wrap(-a + radians(azimuth_offset_deg))``."""
     empty = np.zeros(0, dtype=np.float32)
     azimuth = ccw_azimuth(scan.azimuth_rad, azimuth_offset_deg)
     power = counts_to_power(scan.power, db_per_count)
-    return [(int(scan.timestamps_ns[i]), msgs.RadarBeam(float(azimuth[i]), int(turn), i, power[i], empty, config))
+    return [(int(scan.timestamps_ns[i]),
+             impala_msgs.RadarBeam(float(azimuth[i]), int(turn), i, power[i], empty, config))
             for i in np.flatnonzero(scan.valid).tolist()]
 
 
 def iter_oxford_folder(folder: str | Path, **options: float,
-                       ) -> Iterator[tuple[int, str, msgs.RadarBeam | msgs.Pose2D]]:
+                       ) -> Iterator[tuple[int, str, impala_msgs.RadarBeam | msgs.Pose2D]]:
     """``(t_ns, "beams" | "truth", message)`` in time order for an Oxford folder
     (``radar/<us>.png``, optional ``gt/radar_odometry.csv``): every valid beam, and the truth
     poses in frame ``odom`` (identity at the scan before the first one, stamped at the middle

@@ -15,7 +15,8 @@ from collections.abc import Iterator
 from typing import Any
 
 from impala_flow import Output, Param, Source
-from impala_flow.msgs import ObjectStates, Pose2D, RadarBeam, Speed, YawRate
+from impala_flow.msgs import Pose2D
+from impala_msgs import ObjectStates, RadarBeam, Speed, YawRate
 
 from .datasets.common import (
     DB_PER_COUNT_MAX,

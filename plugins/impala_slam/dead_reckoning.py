@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 
 from impala_flow import Component, Input, Output, Param, Periodic
-from impala_flow.msgs import Pose2D, Speed, YawRate
+from impala_flow.msgs import Pose2D
+from impala_msgs import Speed, YawRate
 
 __all__ = ["DeadReckoning", "arc_step"]
 

@@ -32,7 +32,7 @@ from scipy.ndimage import maximum_filter
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
-from impala_flow.msgs import RadarConfig
+from impala_msgs import RadarConfig
 
 __all__ = ["Echoes", "EchoParams", "VelocityEstimate", "arc_poses", "doppler_beta_s", "echo_points",
            "extract_echoes", "estimate_velocity", "search_velocity", "strongest"]

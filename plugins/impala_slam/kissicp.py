@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import Pose2D, RadarDetections, Twist2D
+from impala_flow.msgs import Pose2D, Twist2D
+from impala_msgs import RadarDetections
 
 from . import se2
 from .se2 import between

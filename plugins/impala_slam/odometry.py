@@ -40,7 +40,8 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 
 from impala_flow import Component, Input, Output, Param, Periodic
-from impala_flow.msgs import Grid, Pose2D, RadarBeam, Scalar, Twist2D
+from impala_flow.msgs import Grid, Pose2D, Scalar, Twist2D
+from impala_msgs import RadarBeam
 
 from .dead_reckoning import arc_step
 from .distortion import (

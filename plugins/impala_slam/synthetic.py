@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from impala_flow.msgs import Grid, Pose2D, Speed, YawRate
+from impala_flow.msgs import Grid, Pose2D
+from impala_msgs import Speed, YawRate
 
 __all__ = ["SyntheticWorld", "grid_shape", "beynes_like_path", "synthetic_mission"]
 

@@ -28,7 +28,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import Pose2D, RadarDetections, Speed
+from impala_flow.msgs import Pose2D
+from impala_msgs import RadarDetections, Speed
 
 from .types import MoverDetections
 

@@ -33,7 +33,7 @@ from scipy.special import ndtr
 from scipy.stats import chi2
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import ObjectStates, TrackExistence
+from impala_msgs import ObjectStates, TrackExistence
 
 from .types import MoverDetections
 

@@ -11,8 +11,9 @@ from collections.abc import Iterator
 from typing import Any
 
 from impala_flow import Component, Input, Output, Param, Source
-from impala_flow.msgs import Grid, ObjectStates, Points2D, Pose2D, RadarBeam, Speed, YawRate
+from impala_flow.msgs import Grid, Points2D, Pose2D
 from impala_flow.plugins import hookimpl
+from impala_msgs import ObjectStates, RadarBeam, Speed, YawRate
 
 
 class Ticker(Source):

@@ -10,8 +10,9 @@ from dataclasses import replace
 import numpy as np
 
 from impala_flow import Component, Input, Output
-from impala_flow.msgs import Grid, Pose2D, RadarBeam, RadarDetections, Speed
+from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components, run_graph_text
+from impala_msgs import RadarBeam, RadarDetections, Speed
 from impala_radar.sim.presets import IMPALA
 
 MS = 1_000_000
@@ -145,7 +146,7 @@ def test_real_time_executor_drops_and_counts_invalid_samples_too():
 
 
 def test_impossible_shapes_and_values_are_invalid():
-    from impala_flow.msgs import ObjectStates, RadarScan, TrackExistence
+    from impala_msgs import ObjectStates, RadarScan, TrackExistence
 
     ids = np.array([1, 2])
     assert ObjectStates(ids, np.zeros((2, 2)), np.zeros((2, 2))).invalid_reason() is None
@@ -160,7 +161,7 @@ def test_impossible_shapes_and_values_are_invalid():
 
 
 def test_a_check_that_cannot_read_the_sample_makes_it_invalid_not_a_crash():
-    from impala_flow.msgs import ObjectStates
+    from impala_msgs import ObjectStates
 
     bad = ObjectStates(None, np.zeros((1, 2)), np.zeros((1, 2)))  # len(None) raises inside the check
     good = ObjectStates(np.array([1]), np.zeros((1, 2)), np.zeros((1, 2)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS
+from impala_msgs import SPEED_OF_LIGHT_MPS
 from impala_radar.sim.presets import IMPALA
 from impala_radar.sim.spectra import Echoes, RadarParams, Synthesizer, noise_power_per_bin_w
 

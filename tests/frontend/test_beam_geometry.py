@@ -12,8 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from impala_flow.msgs import Grid, Speed, YawRate
+from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import Speed, YawRate
 from impala_radar.frontend.panoramic import relative_to
 from impala_radar.frontend.panoramic_builder import PanoramicBuilder
 from impala_radar.sim.presets import IMPALA, K2PI

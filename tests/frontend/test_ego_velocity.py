@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from impala_flow.msgs import RadarDetections
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import RadarDetections
 from impala_radar.frontend.ego_velocity import EgoVelocity, elevation_factor, fit_ego_velocity
 from impala_radar.frontend.pairer import FuzzyPairer, detections_of_pairs
 from impala_radar.frontend.pairing import pair_turn, xcorr_speed_prior

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from impala_flow.msgs import RadarBeam, RadarDetections
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import RadarBeam, RadarDetections
 from impala_radar.datasets.common import navtech_config
 from impala_radar.frontend import PeakExtractor
 

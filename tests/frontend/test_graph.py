@@ -8,8 +8,8 @@ import numpy as np
 from impala_flow._session import Session
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
-from impala_flow.msgs import RadarBeam, Speed
 from impala_flow.testing import ScriptedSource, run_components
+from impala_msgs import RadarBeam, Speed
 from impala_radar.frontend import EgoVelocity, FrontendReport, FuzzyPairer, PanoramicBuilder, SpeckleFilter
 from impala_radar.sim.presets import IMPALA
 

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarBeam
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarBeam
 from impala_radar.frontend.fuzzy import pair_score
 from impala_radar.frontend.pairer import FuzzyPairer
 from impala_radar.frontend.pairing import (

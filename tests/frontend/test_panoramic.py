@@ -2,8 +2,9 @@
 
 import numpy as np
 
-from impala_flow.msgs import Grid, RadarScan, Speed, YawRate
+from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import RadarScan, Speed, YawRate
 from impala_radar.frontend.panoramic import relative_beam_poses, relative_to, scan_to_grid
 from impala_radar.frontend.panoramic_builder import PanoramicBuilder
 from impala_radar.sim.presets import IMPALA

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from impala_flow import msgs
+import impala_msgs
 from impala_flow.io import (
     BadMagicError,
     CodecRegistry,
@@ -30,9 +30,9 @@ def good(tmp_path: Path, registry: CodecRegistry) -> Path:
     path = tmp_path / "good.mcap"
     with MissionWriter(path, codecs=registry, chunk_size=4096, compression="none",
                        metadata={"graph": {"yaml": "a: 1"}}) as w:
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         for i in range(N):
-            w.write("odo/speed", i * 1000, msgs.Speed(float(i)), i)
+            w.write("odo/speed", i * 1000, impala_msgs.Speed(float(i)), i)
     return path
 
 
@@ -108,9 +108,9 @@ def test_flipped_bits_inside_a_chunk(tmp_path: Path, registry: CodecRegistry,
                                      compression: str) -> None:
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=registry, chunk_size=4096, compression=compression) as w:
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         for i in range(N):
-            w.write("odo/speed", i * 1000, msgs.Speed(float(i)), i)
+            w.write("odo/speed", i * 1000, impala_msgs.Speed(float(i)), i)
     chunks = _chunks(path)
     bad = chunks[2]
     data = bytearray(path.read_bytes())

@@ -12,6 +12,7 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
 from impala_flow.io import CodecRegistry, MissionWriter
@@ -23,11 +24,11 @@ def mission(tmp_path: Path) -> Path:
     with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=2048,
                        metadata={"impala_flow._graph": {"yaml": "name: g"}}) as w:
         w.add_topic("slam/pose", msgs.Pose2D)
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("count", int)
         for k in range(100):
             w.write("slam/pose", k * 10_000_000, msgs.Pose2D(k * 1.0, 2.0, 0.5, np.eye(3)))
-            w.write("odo/speed", k * 10_000_000, msgs.Speed(k / 2))
+            w.write("odo/speed", k * 10_000_000, impala_msgs.Speed(k / 2))
             w.write("count", k * 10_000_000, k)
     return path
 

@@ -68,7 +68,7 @@ def strategy_for(cls: type, depth: int = 0) -> st.SearchStrategy:
     return st.builds(cls, **kwargs)
 
 
-@pytest.mark.parametrize("cls", msgs.BUILTIN_TYPES, ids=lambda c: c.__name__)
+@pytest.mark.parametrize("cls", msgs.BUILTIN_TYPES + msgs.installed_types(), ids=lambda c: c.__name__)
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 def test_message_round_trip(cls: type, data: st.DataObject) -> None:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow._clock import FakeClock
 from impala_flow._component import Component, Input, Output, Param, Source
@@ -27,7 +28,7 @@ class Drive(Source):
 
     seconds = Param(int, default=3)
     pose = Output(msgs.Pose2D)
-    speed = Output(msgs.Speed)
+    speed = Output(impala_msgs.Speed)
     image = Output(msgs.Grid)
 
     def generate(self) -> Iterator[tuple[int, str, Any]]:
@@ -35,7 +36,7 @@ class Drive(Source):
             t = k * SEC // 20
             if k % 2 == 0:
                 yield t, "pose", msgs.Pose2D(0.1 * k, -0.2 * k, 0.01 * k, np.eye(3) * k)
-            yield t, "speed", msgs.Speed(float(k))
+            yield t, "speed", impala_msgs.Speed(float(k))
             if k % 20 == 0:
                 yield t, "image", msgs.Grid(np.full((8, 8), k, np.float32), 0.5, 0.0, 0.0)
 
@@ -43,7 +44,7 @@ class Drive(Source):
 class Jumps(Component):
     """Keeps the speeds it receives and the time jumps announced to it."""
 
-    speed = Input(msgs.Speed)
+    speed = Input(impala_msgs.Speed)
     start_at = Param(int, default=0)
 
     def start(self) -> None:
@@ -209,9 +210,9 @@ def test_replayer_replays_a_truncated_recording(tmp_path: Path) -> None:
     path = tmp_path / "cut.mcap"
     with MissionWriter(path, codecs=__import__("impala_flow.io").io.CodecRegistry
                        .with_standard_types(), chunk_size=1024) as w:
-        w.add_topic("car/speed", msgs.Speed)
+        w.add_topic("car/speed", impala_msgs.Speed)
         for k in range(2000):
-            w.write("car/speed", k * 1000, msgs.Speed(float(k)))
+            w.write("car/speed", k * 1000, impala_msgs.Speed(float(k)))
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
     _, net = replay(path)

@@ -15,14 +15,15 @@ SCRIPT = """
 import sys
 import numpy as np
 from impala_flow import msgs
+import impala_msgs
 from impala_flow.io import CodecRegistry, MissionWriter
 w = MissionWriter(sys.argv[1], codecs=CodecRegistry.with_standard_types(),
                   chunk_size=64 * 1024, metadata={"graph": {"yaml": "name: crash"}})
-w.add_topic("odo/speed", msgs.Speed)
+w.add_topic("odo/speed", impala_msgs.Speed)
 w.add_topic("radar/image", msgs.Grid)
 i = 0
 while True:  # a long mission: only SIGKILL ends it
-    w.write("odo/speed", i * 1_000_000, msgs.Speed(float(i)), i)
+    w.write("odo/speed", i * 1_000_000, impala_msgs.Speed(float(i)), i)
     if i % 10 == 0:
         w.write("radar/image", i * 1_000_000, msgs.Grid(np.full((16, 16), i, np.float32),
                                                         0.2, 0.0, 0.0), i)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from impala_flow import msgs
+import impala_msgs
 from impala_flow.io import CodecRegistry, MissionReader, MissionWriter, RecordingError
 
 N = 2000
@@ -22,10 +22,10 @@ MAGIC = 8
 def _write(path: Path, registry: CodecRegistry, compression: str = "zstd") -> Path:
     with MissionWriter(path, codecs=registry, chunk_size=4096, compression=compression,
                        metadata={"graph": {"yaml": "a: 1"}, "notes": {"who": "test"}}) as w:
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("gyro/yaw", float)
         for i in range(N):
-            w.write("odo/speed", i * 1000, msgs.Speed(float(i)), i)
+            w.write("odo/speed", i * 1000, impala_msgs.Speed(float(i)), i)
             if i % 4 == 0:
                 w.write("gyro/yaw", i * 1000 + 1, float(i), i)
     return path

@@ -9,12 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
 from impala_flow.io import CodecRegistry, MissionWriter
 
 RNG = np.random.default_rng(3)
-STATES = [msgs.ObjectStates(ids=np.arange(n, dtype=np.int64) + 10 * k, xy_m=RNG.normal(size=(n, 2)),
+STATES = [impala_msgs.ObjectStates(ids=np.arange(n, dtype=np.int64) + 10 * k, xy_m=RNG.normal(size=(n, 2)),
                             v_xy_mps=RNG.normal(size=(n, 2)))
           for k, n in enumerate([3, 0, 2])]
 TRAJ = msgs.Trajectory2D(t_ns=np.array([5, 6, 7, 8], np.int64), xyt=RNG.normal(size=(4, 3)))
@@ -25,7 +26,7 @@ BIG_GRID = msgs.Grid(RNG.random((40, 30)).astype(np.float32), 0.2, 1.0, 2.0)
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), foxglove=False) as w:
-        w.add_topic("movers/states", msgs.ObjectStates)
+        w.add_topic("movers/states", impala_msgs.ObjectStates)
         w.add_topic("slam/trajectory", msgs.Trajectory2D)
         w.add_topic("slam/map", msgs.Grid)
         for k, s in enumerate(STATES):

@@ -13,6 +13,7 @@ from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 from mcap.reader import make_reader
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.io import CodecRegistry, MissionWriter, foxglove_topic
 
@@ -34,7 +35,7 @@ def test_mirrors_decode_with_foxglove_classes(tmp_path: Path,
     with MissionWriter(path, codecs=registry) as w:
         for topic, t in [("slam/pose", msgs.Pose2D), ("slam/traj", msgs.Trajectory2D),
                          ("slam/map", msgs.Grid), ("radar/points", msgs.Points2D),
-                         ("odo/speed", msgs.Speed)]:
+                         ("odo/speed", impala_msgs.Speed)]:
             w.add_topic(topic, t)
         w.write("slam/pose", t_ns, msgs.Pose2D(1.5, -2.0, math.pi / 2, frame="odom"))
         w.write("slam/traj", t_ns, msgs.Trajectory2D(
@@ -42,7 +43,7 @@ def test_mirrors_decode_with_foxglove_classes(tmp_path: Path,
         w.write("slam/map", t_ns, msgs.Grid(grid, 0.5, 10.0, 20.0, frame="map"))
         w.write("radar/points", t_ns, msgs.Points2D(np.array([[1.0, 2.0], [3.0, 4.0]]),
                                                     np.array([7.0, 8.0])))
-        w.write("odo/speed", t_ns, msgs.Speed(3.0))
+        w.write("odo/speed", t_ns, impala_msgs.Speed(3.0))
     mirrors = _mirrors(path)
     assert set(mirrors) == {foxglove_topic(t) for t in
                             ("slam/pose", "slam/traj", "slam/map", "radar/points")}
@@ -92,19 +93,19 @@ def test_radar_and_objects_mirrors(tmp_path: Path, registry: CodecRegistry) -> N
 
     path = tmp_path / "m.mcap"
     t_ns = 2_000_000_000
-    det = msgs.RadarDetections(turn=3, t_ns=np.array([1, 2]), beam=np.array([5, 90]),
+    det = impala_msgs.RadarDetections(turn=3, t_ns=np.array([1, 2]), beam=np.array([5, 90]),
                                azimuth_rad=np.array([0.0, math.pi / 2]), range_m=np.array([10.0, 20.0]),
                                radial_speed_mps=np.array([-1.5, 0.25]), amplitude=np.array([3.0, 4.0]),
                                score=np.array([0.9, 0.5]))
     power = np.array([[1.0, 10.0, 100.0], [0.001, 1e6, 0.0]], np.float32)
-    scan = msgs.RadarScan(turn=3, t_ns=np.array([1, 2]), azimuth_rad=np.array([0.0, 0.1]), power=power,
-                          down=np.zeros((0, 0), np.float32), config=msgs.RadarConfig(
+    scan = impala_msgs.RadarScan(turn=3, t_ns=np.array([1, 2]), azimuth_rad=np.array([0.0, 0.1]), power=power,
+                          down=np.zeros((0, 0), np.float32), config=impala_msgs.RadarConfig(
                               "x", 24e9, 200e6, 1000.0, 100.0, 3, 0.05, 1.0, 2, 0.0, 10.0))
-    objects = msgs.ObjectStates(ids=np.array([7, 12]), xy_m=np.array([[1.0, 2.0], [3.0, 4.0]]),
+    objects = impala_msgs.ObjectStates(ids=np.array([7, 12]), xy_m=np.array([[1.0, 2.0], [3.0, 4.0]]),
                                 v_xy_mps=np.array([[3.0, 4.0], [0.0, 0.0]]))
     with MissionWriter(path, codecs=registry) as w:
-        for topic, t in [("pairer/detections", msgs.RadarDetections), ("radar/scan", msgs.RadarScan),
-                         ("tracker/tracks", msgs.ObjectStates)]:
+        for topic, t in [("pairer/detections", impala_msgs.RadarDetections), ("radar/scan", impala_msgs.RadarScan),
+                         ("tracker/tracks", impala_msgs.ObjectStates)]:
             w.add_topic(topic, t)
         w.write("pairer/detections", t_ns, det)
         w.write("radar/scan", t_ns, scan)

@@ -12,6 +12,7 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
 from impala_flow.io import CodecRegistry, MissionReader, MissionWriter
@@ -24,10 +25,10 @@ TOPICS = ("odo/speed", "gps/pose")  # recorded; the file also holds their Foxglo
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=4096) as w:
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("gps/pose", msgs.Pose2D)
         for i in range(N):
-            w.write("odo/speed", i * 1_000_000, msgs.Speed(float(i)), i)
+            w.write("odo/speed", i * 1_000_000, impala_msgs.Speed(float(i)), i)
             if i % 10 == 0:
                 w.write("gps/pose", i * 1_000_000, msgs.Pose2D(float(i), 0.0, 0.0), i)
     return path

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from impala_flow import msgs
+import impala_msgs
 from impala_flow._offline import MAX_TIMER_FIRINGS
 from impala_flow.cli import main
 from impala_flow.io import CodecRegistry, MissionWriter
@@ -20,11 +20,11 @@ YEAR_NS = 365 * 86_400 * 10**9
 
 def _mission(path: Path, times_ns: list[int]) -> Path:
     with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=4096) as w:
-        w.add_topic("odo/speed", msgs.Speed)
-        w.add_topic("gyro/yaw_rate", msgs.YawRate)
+        w.add_topic("odo/speed", impala_msgs.Speed)
+        w.add_topic("gyro/yaw_rate", impala_msgs.YawRate)
         for i, t in enumerate(times_ns):
-            w.write("odo/speed", t, msgs.Speed(1.0), i)
-            w.write("gyro/yaw_rate", t, msgs.YawRate(0.0), i)
+            w.write("odo/speed", t, impala_msgs.Speed(1.0), i)
+            w.write("gyro/yaw_rate", t, impala_msgs.YawRate(0.0), i)
     return path
 
 

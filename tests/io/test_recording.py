@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+import impala_msgs
 from impala_flow import msgs
 from impala_flow.io import (
     CodecError,
@@ -23,14 +24,14 @@ from .helpers import assert_same
 
 
 def sample_values(i: int) -> dict[str, tuple[type, object]]:
-    cfg = msgs.RadarConfig("r", 77e9, 1e9, 1e3, 1e3, 4, 0.02, 4.0, 8, 1.0, 100.0)
+    cfg = impala_msgs.RadarConfig("r", 77e9, 1e9, 1e3, 1e3, 4, 0.02, 4.0, 8, 1.0, 100.0)
     return {
         "gps/pose": (msgs.Pose2D, msgs.Pose2D(float(i), -float(i), 0.1 * i, np.eye(3) * i, "map")),
-        "radar/beams": (msgs.RadarBeam, msgs.RadarBeam(
+        "radar/beams": (impala_msgs.RadarBeam, impala_msgs.RadarBeam(
             0.1, i, 3, np.array([i, np.nan, np.inf, -np.inf], ">f4"),
             np.zeros(0, np.float32), cfg)),
         "slam/map": (msgs.Grid, msgs.Grid(np.full((4, 5), i, np.uint8), 0.5, 1.0, 2.0)),
-        "odo/speed": (msgs.Speed, msgs.Speed(float(i))),
+        "odo/speed": (impala_msgs.Speed, impala_msgs.Speed(float(i))),
         "count": (int, i),
         "note": (str, f"sample {i}"),
     }
@@ -137,7 +138,7 @@ def test_topic_selection_and_raw(tmp_path: Path, registry: CodecRegistry) -> Non
     with MissionReader(path, registry) as r:
         assert [m.topic for m in r.messages(["odo/speed"])] == ["odo/speed"] * 5
         raw = list(r.messages(["odo/speed"], raw=True))
-        assert raw[0].data == registry.for_type(msgs.Speed).encode(msgs.Speed(0.0))
+        assert raw[0].data == registry.for_type(impala_msgs.Speed).encode(impala_msgs.Speed(0.0))
         assert r.topic_type("slam/map") is msgs.Grid
         assert "/foxglove/gps/pose" not in r.topics
         with pytest.raises(KeyError, match="no topic 'nope'"):
@@ -154,10 +155,10 @@ def test_unknown_schema_names_the_channel_and_others_still_read(tmp_path: Path) 
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=writer_reg) as w:
         w.add_topic("spy/secret", Secret)
-        w.add_topic("odo/speed", msgs.Speed)
+        w.add_topic("odo/speed", impala_msgs.Speed)
         for i in range(10):
             w.write("spy/secret", i, Secret(i))
-            w.write("odo/speed", i, msgs.Speed(i))
+            w.write("odo/speed", i, impala_msgs.Speed(i))
     with MissionReader(path, CodecRegistry.with_standard_types()) as r:
         got = list(r.messages())
         assert {m.topic for m in got} == {"odo/speed"} and len(got) == 10
@@ -175,7 +176,7 @@ def test_writer_refuses_wrong_types_and_unknown_topics(tmp_path: Path,
     with MissionWriter(tmp_path / "m.mcap", codecs=registry) as w:
         w.add_topic("p", msgs.Pose2D)
         with pytest.raises(CodecError, match="'p' records Pose2D, got Speed"):
-            w.write("p", 0, msgs.Speed(1.0))
+            w.write("p", 0, impala_msgs.Speed(1.0))
         with pytest.raises(KeyError, match="add_topic"):
             w.write("q", 0, 1.0)
         with pytest.raises(ValueError, match="added twice"):
@@ -225,14 +226,14 @@ def test_reads_files_written_by_the_bare_mcap_writer(tmp_path: Path, registry: C
     from mcap.writer import Writer
 
     path = tmp_path / "bare.mcap"
-    codec = registry.for_type(msgs.Speed)
+    codec = registry.for_type(impala_msgs.Speed)
     with open(path, "wb") as f:
         w = Writer(f, chunk_size=512)
         w.start()
         sid = w.register_schema(codec.schema_name, codec.schema_encoding, codec.schema_data())
         cid = w.register_channel("odo/speed", codec.message_encoding, sid)
         for i in range(500):
-            w.add_message(cid, i, codec.encode(msgs.Speed(float(i))), i, i)
+            w.add_message(cid, i, codec.encode(impala_msgs.Speed(float(i))), i, i)
         w.finish()
     if cut:
         path.write_bytes(path.read_bytes()[:-100])

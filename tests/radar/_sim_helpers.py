@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS as C
+from impala_msgs import SPEED_OF_LIGHT_MPS as C
 
 
 class StraightLine:

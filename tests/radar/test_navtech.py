@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import impala_msgs
 from impala_flow import msgs
 from impala_radar.navtech import (
     NAVTECH_CTS350X,
@@ -98,7 +99,7 @@ def test_scan_to_beams(scan_paths):
     times = [t for t, _ in beams]
     assert times == sorted(times) and all(type(t) is int for t in times)
     t0, b0 = beams[0]
-    assert isinstance(b0, msgs.RadarBeam) and b0.turn == 7 and b0.index == 0
+    assert isinstance(b0, impala_msgs.RadarBeam) and b0.turn == 7 and b0.index == 0
     assert b0.down.dtype == np.float32 and b0.down.size == 0
     # linear power from the half-dB pixel counts: P = 10^(count * 0.5 / 10)
     import cv2

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from impala_flow import msgs
+import impala_msgs
 from impala_radar.sim.sensors import Gps, Gyro, Odometer, make_sensors, sample_times_ns
 from impala_radar.sim.vehicle import Trajectory
 
@@ -127,7 +127,7 @@ def test_make_sensors():
     assert set(sensors) == {"odometer", "gyro", "gps"}
     assert sensors["odometer"].scale_error == 0.05 and sensors["odometer"].rate_hz == 50.0
     assert isinstance(sensors["gps"], Gps) and sensors["gps"].port == "gps"
-    assert sensors["gyro"].msg_type is msgs.YawRate
+    assert sensors["gyro"].msg_type is impala_msgs.YawRate
     with pytest.raises(ValueError, match="'scale_eror'") as info:
         make_sensors({"odometer": {"scale_eror": 0.05}})
     assert "\n" not in str(info.value)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS as C
+from impala_msgs import SPEED_OF_LIGHT_MPS as C
 from impala_radar.sim.antenna import AzimuthPattern
 from impala_radar.sim.clutter import grazing_factor, vegetation_jitter
 from impala_radar.sim.presets import IMPALA, K2PI, NAVTECH

@@ -5,7 +5,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from impala_flow import msgs
+import impala_msgs
 from impala_radar.sim.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 
 
@@ -54,7 +54,7 @@ def test_stream_is_time_ordered_and_complete():
     assert ports == {"beams", "movers", "gps"}
     beams = [m for _, p, m in items if p == "beams"]
     assert len(beams) == 900  # 2.5 s at 360 beams/s
-    assert all(isinstance(b, msgs.RadarBeam) and b.up.dtype == np.float32 for b in beams)
+    assert all(isinstance(b, impala_msgs.RadarBeam) and b.up.dtype == np.float32 for b in beams)
     assert beams[400].turn == 1 and beams[400].index == 40
     movers = [m for _, p, m in items if p == "movers"]
     assert len(movers) == 25 and len(movers[-1].ids) == 1  # the 20 km/h car from t = 2 s

@@ -9,7 +9,8 @@ import math
 
 import numpy as np
 
-from impala_flow.msgs import Pose2D, RadarBeam
+from impala_flow.msgs import Pose2D
+from impala_msgs import RadarBeam
 from impala_radar.sim.presets import NAVTECH
 
 #: NAVTECH with fewer bins (1000 x 4.38 cm = 43.8 m): the same geometry, a quarter of the work

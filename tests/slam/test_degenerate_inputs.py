@@ -12,8 +12,9 @@ import pytest
 from impala_eval.evaluator import TrajectoryEvaluator
 from impala_eval.tracking import TrackingEvaluator
 from impala_flow import Component, Input, Param
-from impala_flow.msgs import Grid, ObjectStates, RadarBeam
+from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import ObjectStates, RadarBeam
 from impala_radar.frontend.ego_velocity import EgoVelocity
 from impala_radar.frontend.extractor import PeakExtractor
 from impala_radar.frontend.pairer import FuzzyPairer

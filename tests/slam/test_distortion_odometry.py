@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from impala_flow.io import MissionReader
-from impala_flow.msgs import RadarBeam, RadarConfig
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import RadarBeam, RadarConfig
 from impala_slam.distortion import doppler_beta_s
 from impala_slam.odometry import DistortionOdometry
 

@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from impala_flow.msgs import RadarBeam
 from impala_flow.testing import run_graph_text
+from impala_msgs import RadarBeam
 from impala_radar.datasets.common import navtech_config
 
 pytest.importorskip("kiss_icp")

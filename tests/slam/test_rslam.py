@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from impala_flow._component import Output, Source
-from impala_flow.msgs import Grid, Pose2D, Speed, YawRate
+from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+from impala_msgs import Speed, YawRate
 from impala_slam import DeadReckoning, MatchParams, RSlam, RSlamConfig, RSlamCore, TileMap, match_to_map
 from impala_slam.se2 import between
 from impala_slam.synthetic import SyntheticWorld, synthetic_mission

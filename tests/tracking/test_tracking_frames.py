@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from impala_eval.tracking import TrackingEvaluator
-from impala_flow.msgs import ObjectStates, Pose2D, TrackExistence
+from impala_flow.msgs import Pose2D
 from impala_flow.testing import ScriptedSource, run_components
+from impala_msgs import ObjectStates, TrackExistence
 
 S = 1_000_000_000
 RADAR = np.array([30.0, -10.0])  # the radar's position in the map (heading 0)

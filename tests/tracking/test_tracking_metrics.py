@@ -9,8 +9,9 @@ import json
 import numpy as np
 
 from impala_eval.tracking import TrackingEvaluator
-from impala_flow.msgs import ObjectStates, Pose2D, TrackExistence
+from impala_flow.msgs import Pose2D
 from impala_flow.testing import ScriptedSource, run_components
+from impala_msgs import ObjectStates, TrackExistence
 
 S = 1_000_000_000
 

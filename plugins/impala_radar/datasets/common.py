@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+import impala_msgs
 from impala_flow import msgs
 
 __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
@@ -162,7 +163,7 @@ def check_speed(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray, where
 
 
 def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offset_m: float,
-                   beams_per_turn: int, rotation_hz: float) -> msgs.RadarConfig:
+                   beams_per_turn: int, rotation_hz: float) -> impala_msgs.RadarConfig:
     """A power-only Navtech radar as a :class:`~impala_flow.msgs.RadarConfig`.
 
     Navtech gives no beat frequencies: ``modulation_hz`` is one sweep per azimuth
@@ -171,9 +172,9 @@ def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offs
     per bin. Bin k lies at ``range_offset_m + k range_per_bin_m``; ``range_max_m`` is the far
     edge of the last bin, ``n_bins range_per_bin_m``."""
     modulation_hz = beams_per_turn * rotation_hz
-    return msgs.RadarConfig(
+    return impala_msgs.RadarConfig(
         name=name, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ, modulation_hz=modulation_hz,
-        bin_hz=range_per_bin_m * 4.0 * _BANDWIDTH_HZ * modulation_hz / msgs.SPEED_OF_LIGHT_MPS,
+        bin_hz=range_per_bin_m * 4.0 * _BANDWIDTH_HZ * modulation_hz / impala_msgs.SPEED_OF_LIGHT_MPS,
         n_bins=int(n_bins), beam_width_rad=math.radians(1.8), rotation_hz=float(rotation_hz),
         beams_per_turn=int(beams_per_turn), range_min_m=0.0, range_max_m=n_bins * range_per_bin_m,
         doppler=False, range_offset_m=float(range_offset_m))
@@ -202,7 +203,7 @@ class ImportReport:
 
     dataset: str = ""
     folder: str = ""
-    config: msgs.RadarConfig | None = None
+    config: impala_msgs.RadarConfig | None = None
     turns: int = 0
     beams: int = 0
     dropped_rows: Counter = field(default_factory=Counter)  # reason -> rows
@@ -263,7 +264,7 @@ class NavtechDataset:
 
     name = ""
     scan_paths: list[Path]
-    config: msgs.RadarConfig
+    config: impala_msgs.RadarConfig
 
     def read_scan(self, k: int) -> Scan:
         raise NotImplementedError
@@ -291,7 +292,7 @@ def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
 
 
 def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
-           ) -> Iterator[tuple[int, int, str, msgs.RadarBeam]]:
+           ) -> Iterator[tuple[int, int, str, impala_msgs.RadarBeam]]:
     last_t, noted = np.iinfo(np.int64).min, False
     for k, path in enumerate(ds.scan_paths):
         try:
@@ -333,11 +334,11 @@ def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_coun
         chirp = [0] * rows.size if scan.chirp is None else scan.chirp[rows].tolist()
         for i, ti, az, ch in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(), chirp,
                                  strict=True):
-            yield ti, 0, "beams", msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config, int(ch))
+            yield ti, 0, "beams", impala_msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config, int(ch))
 
 
 def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_bad: bool = False,
-                 db_per_count: float = 0.5) -> Iterator[tuple[int, str, msgs.RadarBeam | msgs.Pose2D]]:
+                 db_per_count: float = 0.5) -> Iterator[tuple[int, str, impala_msgs.RadarBeam | msgs.Pose2D]]:
     """``(t_ns, "beams" | "truth", message)`` in time order (beams before a truth pose of the
     same time), the beams' power linear (:func:`counts_to_power`). Bad scans raise
     :class:`DatasetError`; with ``skip_bad`` they are skipped and listed in

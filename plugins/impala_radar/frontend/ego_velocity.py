@@ -43,7 +43,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import RadarDetections, Speed
+from impala_msgs import RadarDetections, Speed
 
 __all__ = ["EgoFit", "radial_speed_model_mps", "fit_ego_velocity", "EgoVelocity", "subset", "elevation_factor"]
 

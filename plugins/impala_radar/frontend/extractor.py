@@ -26,7 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import RadarBeam, RadarConfig, RadarDetections
+from impala_msgs import RadarBeam, RadarConfig, RadarDetections
 
 from .peaks import cfar_threshold
 from .turns import TurnBuffer

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import RadarBeam, RadarConfig, RadarDetections, Speed
+from impala_msgs import RadarBeam, RadarConfig, RadarDetections, Speed
 
 from .pairing import Pairs, pair_turn, radial_speed_from_beats_mps, range_from_beats_m, xcorr_speed_prior
 from .turns import TurnBuffer

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.fft
 from scipy.optimize import linear_sum_assignment
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 from .fuzzy import pair_score
 from .peaks import Peaks, cfar_threshold, find_peaks, peak_features

@@ -24,7 +24,7 @@ import math
 import cv2
 import numpy as np
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 __all__ = [
     "relative_beam_poses", "integrate_poses", "relative_to", "doppler_compensated_power",

@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
-from impala_flow.msgs import Grid, Pose2D, RadarBeam, RadarScan, Speed, Twist2D, YawRate, wrap_angle
+from impala_flow.msgs import Grid, Pose2D, Twist2D, wrap_angle
+from impala_msgs import RadarBeam, RadarScan, Speed, YawRate
 
 from .panoramic import (
     AzimuthTable,

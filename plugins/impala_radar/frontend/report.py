@@ -15,7 +15,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from impala_flow import Component, Input, Param
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, Grid, RadarBeam, RadarConfig, RadarDetections, Speed
+from impala_flow.msgs import Grid
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarBeam, RadarConfig, RadarDetections, Speed
 
 from .ego_velocity import fit_ego_velocity, radial_speed_model_mps
 

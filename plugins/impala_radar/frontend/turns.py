@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from impala_flow.msgs import RadarBeam
+from impala_msgs import RadarBeam
 
 __all__ = ["TurnBuffer"]
 

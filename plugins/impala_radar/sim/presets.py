@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 __all__ = ["IMPALA", "K2PI", "NAVTECH", "PRESETS", "preset", "ZERO_PADDING"]
 

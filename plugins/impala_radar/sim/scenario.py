@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from impala_flow import YamlError, load_yaml, location
-from impala_flow.msgs import RadarConfig
+from impala_msgs import RadarConfig
 
 from .presets import preset
 from .scenes import SCENES

@@ -15,6 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+import impala_msgs
 from impala_flow import msgs
 
 from .vehicle import Trajectory
@@ -50,7 +51,7 @@ class Odometer:
     slip_factor: float = 1.2
 
     port: ClassVar[str] = "odometer"
-    msg_type: ClassVar[type] = msgs.Speed
+    msg_type: ClassVar[type] = impala_msgs.Speed
 
     def slip_mask(self, t_ns: np.ndarray, rng: np.random.Generator, start_ns: int,
                   end_ns: int) -> np.ndarray:
@@ -65,14 +66,14 @@ class Odometer:
         return (k >= 0) & (t_ns < covered_end)
 
     def samples(self, trajectory: Trajectory, rng: np.random.Generator, start_ns: int,
-                end_ns: int) -> Iterator[tuple[int, msgs.Speed]]:
+                end_ns: int) -> Iterator[tuple[int, impala_msgs.Speed]]:
         t = sample_times_ns(self.rate_hz, start_ns, end_ns)
         v, _ = trajectory.velocity(t)
         slip = np.where(self.slip_mask(t, rng, start_ns, end_ns), self.slip_factor, 1.0)
         noise = rng.normal(0.0, self.noise_mps, len(t)) * (v != 0.0)
         measured = (1.0 + self.scale_error) * slip * v + noise
         for ti, m in zip(t.tolist(), measured.tolist(), strict=True):
-            yield ti, msgs.Speed(m)
+            yield ti, impala_msgs.Speed(m)
 
 
 @dataclass
@@ -86,10 +87,10 @@ class Gyro:
     bias_walk_radps_per_sqrt_s: float = 1e-4
 
     port: ClassVar[str] = "gyro"
-    msg_type: ClassVar[type] = msgs.YawRate
+    msg_type: ClassVar[type] = impala_msgs.YawRate
 
     def samples(self, trajectory: Trajectory, rng: np.random.Generator, start_ns: int,
-                end_ns: int) -> Iterator[tuple[int, msgs.YawRate]]:
+                end_ns: int) -> Iterator[tuple[int, impala_msgs.YawRate]]:
         t = sample_times_ns(self.rate_hz, start_ns, end_ns)
         _, w = trajectory.velocity(t)
         dt_s = 1.0 / self.rate_hz
@@ -98,7 +99,7 @@ class Gyro:
         bias = self.bias_radps + np.cumsum(steps)
         measured = w + bias + rng.normal(0.0, self.noise_radps, len(t))
         for ti, m in zip(t.tolist(), measured.tolist(), strict=True):
-            yield ti, msgs.YawRate(m)
+            yield ti, impala_msgs.YawRate(m)
 
 
 @dataclass

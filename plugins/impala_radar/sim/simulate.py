@@ -39,8 +39,8 @@ from operator import itemgetter
 
 import numpy as np
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig
 from impala_flow.msgs import wrap_angle as _wrap
+from impala_msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig
 
 from .clutter import grazing_factor, hash_uniform, split_tiles, vegetation_jitter
 from .receiver import adc_counts, leakage_echoes, mirror_images

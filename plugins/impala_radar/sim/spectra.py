@@ -74,7 +74,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.fft
 
-from impala_flow.msgs import SPEED_OF_LIGHT_MPS, RadarConfig
+from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 from .antenna import AzimuthPattern
 from .clutter import grazing_factor

@@ -6,7 +6,7 @@ from dataclasses import field
 
 import numpy as np
 
-from ._base import invalid_fields, message
+from impala_flow.msgs import invalid_fields, message
 
 __all__ = [
     "RadarConfig", "RadarBeam", "RadarScan", "RadarDetections", "Speed", "YawRate", "ObjectStates",
