@@ -1,4 +1,5 @@
-"""Layering: the engine never imports a plugin, and a plugin never imports another one.
+"""Layering: the engine never imports a plugin or a message package, and a plugin never imports
+another plugin (the shared message packages, ``impala_msgs``, are what plugins share).
 
 Checked twice: by import-linter (the contract in pyproject.toml, on the import graph of
 the installed packages) and by a scan of the source files' syntax trees, which also sees
@@ -24,10 +25,14 @@ EXAMPLE = ROOT / "tests" / "plugin_example" / "impala_flow_example"
 
 #: the built-in plugins of DESIGN.md, whether or not they have landed yet, plus whatever
 #: package sits in plugins/, plus the third-party example
+#: message packages (the ``impala_flow.messages`` entry point group): every plugin may import them
+MESSAGE_PACKAGES = {"impala_msgs"}
 PLUGIN_PACKAGES = sorted(
-    {"impala_radar", "impala_io", "impala_slam", "impala_tracking", "impala_eval", "impala_flow_example"}
-    | {p.parent.name for p in PLUGINS_DIR.glob("*/__init__.py")}
+    ({"impala_radar", "impala_io", "impala_slam", "impala_tracking", "impala_eval", "impala_flow_example"}
+     | {p.parent.name for p in PLUGINS_DIR.glob("*/__init__.py")}) - MESSAGE_PACKAGES
 )
+#: engine modules still holding a domain mirror until it moves to its plugin (issue 25)
+ENGINE_DOMAIN_EXCEPTIONS = {"impala_flow/io/_foxglove.py"}
 
 
 def imported_modules(path: Path) -> list[tuple[int, str]]:
@@ -95,8 +100,10 @@ def test_engine_imports_no_plugin() -> None:
     files = _python_files(ENGINE)
     assert len(files) > 10
     bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
-           for f in files for line, mod in imported_modules(f) if _top(mod) in PLUGIN_PACKAGES]
-    assert not bad, "the engine must not import a plugin:\n" + "\n".join(bad)
+           for f in files for line, mod in imported_modules(f)
+           if _top(mod) in PLUGIN_PACKAGES
+           or (_top(mod) in MESSAGE_PACKAGES and str(f.relative_to(ROOT)) not in ENGINE_DOMAIN_EXCEPTIONS)]
+    assert not bad, "the engine must not import a plugin or a domain message package:\n" + "\n".join(bad)
 
 
 BUILTIN_PRESENT = [p for p in PLUGIN_PACKAGES if (PLUGINS_DIR / p).is_dir()]
@@ -108,7 +115,7 @@ def test_plugin_imports_no_other_plugin(package: str) -> None:
     bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
            for f in _python_files(folder) for line, mod in imported_modules(f)
            if _top(mod) in PLUGIN_PACKAGES and _top(mod) != package]
-    assert not bad, (f"{package} must not import another plugin (shared types go to impala_flow.msgs):\n"
+    assert not bad, (f"{package} must not import another plugin (shared types go to impala_msgs):\n"
                      + "\n".join(bad))
 
 
