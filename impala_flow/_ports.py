@@ -84,9 +84,7 @@ import numpy as np
 
 from ._sample import Sample
 from ._summary import ComponentError
-from .msgs import freeze
-from .msgs._base import _freezers, _noop
-from .msgs._geometry import wrap_angle
+from .msgs import freezer_for, wrap_angle
 
 if TYPE_CHECKING:
     from ._component import Component, Input, Output
@@ -645,9 +643,10 @@ class OutputPort:
         if cls is not self._cls:  # a class not seen last time: check it, find its freezer
             if self._typed and cls not in self._ok:
                 self._check_type(t_ns, data)
-            freeze(data)
-            f = _freezers[cls]
-            self._cls, self._frz = cls, None if f is _noop else f
+            f = freezer_for(cls)
+            if f is not None:
+                f(data)
+            self._cls, self._frz = cls, f
         elif self._frz is not None:
             self._frz(data)
         s = Sample(t_ns, data, self._seq, self.origin)

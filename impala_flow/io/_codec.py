@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from ..msgs._base import is_message, schema_name, schema_version
+from ..msgs import is_message, schema_name, schema_version
 from ._errors import CodecError
 
 __all__ = [

@@ -6,7 +6,7 @@ radar chain's is ``impala_msgs``), declared in the ``impala_flow.messages`` entr
 so every registry and recording reader knows them (:func:`installed_types`).
 """
 
-from ._base import freeze, invalid_fields, is_message, message, schema_name, schema_version
+from ._base import freeze, freezer_for, invalid_fields, is_message, message, schema_name, schema_version
 from ._catalog import GROUP, MessagePackage, installed_packages, installed_types
 from ._geometry import (
     HEADING_UNKNOWN_VAR_RAD2,
@@ -24,7 +24,7 @@ from ._geometry import (
 BUILTIN_TYPES: tuple[type, ...] = (Scalar, Pose2D, Twist2D, Trajectory2D, RelativePose2D, Grid, Points2D)
 
 __all__ = [
-    "message", "is_message", "schema_name", "schema_version", "freeze", "invalid_fields", "wrap_angle",
+    "message", "is_message", "schema_name", "schema_version", "freeze", "freezer_for", "invalid_fields", "wrap_angle",
     "HEADING_UNKNOWN_VAR_RAD2",
     "Scalar", "Pose2D", "Twist2D", "Trajectory2D", "RelativePose2D", "Grid", "Points2D",
     "BUILTIN_TYPES", "GROUP", "MessagePackage", "installed_packages", "installed_types",

@@ -19,7 +19,7 @@ import numpy as np
 
 T = TypeVar("T")
 
-__all__ = ["message", "is_message", "schema_name", "schema_version", "freeze", "invalid_fields"]
+__all__ = ["message", "is_message", "schema_name", "schema_version", "freeze", "freezer_for", "invalid_fields"]
 
 
 def message(name: str, version: int = 1, *, nan_ok: tuple[str, ...] = ()) -> Callable[[type[T]], type[T]]:
@@ -123,6 +123,15 @@ def _freezer_for(t: type) -> Callable[[Any], None]:
     if issubclass(t, dict):
         return lambda d: [freeze(v) for v in d.values()] and None
     return _noop
+
+
+def freezer_for(t: type) -> Callable[[Any], None] | None:
+    """The function freezing values of type ``t`` in place (see :func:`freeze`), or None when
+    they hold no array (an output port calls it once per new type, then per sample)."""
+    f = _freezers.get(t)
+    if f is None:
+        f = _freezers[t] = _freezer_for(t)
+    return None if f is _noop else f
 
 
 def freeze(data: Any) -> Any:
