@@ -5,6 +5,9 @@
   marker naming no command, is a build error: the page cannot fall behind the command line.
 * ``docs/getting-started.md``: ``<!-- impala-flow-readme-commands -->`` becomes the README's first
   fenced code block (the two set-up commands CI runs), so the page always shows the same commands.
+* ``docs/api.md``: the ``<!-- impala-flow-public-api -->`` marker becomes the public API: every
+  module of ``impala_flow.PUBLIC_MODULES`` with the names of its ``__all__``, their signatures
+  and the first line of their docstrings (tests/test_public_api.py checks every one has one).
 * ``docs/reference.md``: the ``<!-- impala-flow-components -->`` marker becomes the reference of
   every component of the plugins shipped in this repository (the ``impala-flow`` distribution's, or
   modules inside this tree; another installed plugin, such as the tests' example, is left out), from
@@ -37,6 +40,7 @@ log = logging.getLogger("mkdocs.hooks.impala_flow")
 HELP_MARK = re.compile(r"<!--\s*impala-flow-help:\s*([\w-]+)\s*-->")
 COMPONENTS_MARK = "<!-- impala-flow-components -->"
 README_MARK = "<!-- impala-flow-readme-commands -->"
+API_MARK = "<!-- impala-flow-public-api -->"
 
 # Runs in a subprocess: calls the `impala-flow` console script's function for each argv and
 # prints {"commands": [...], "help": {cmd: text}, "plugins": <plugins --json>, "origins": {module: file},
@@ -83,7 +87,34 @@ for p in plugins["plugins"]:
     except Exception:
         origins[p["module"]] = None
 dists = {ep.value: ep.dist.name if ep.dist else None for ep in entry_points(group="impala_flow")}
-facts = {"dists": dists, "commands": commands, "help": helps, "plugins": plugins, "origins": origins, "docs": docs}
+
+import impala_flow
+
+def first_line(obj):
+    doc = inspect.getdoc(obj) or ""
+    doc = re.sub(r":(?:mod|class|func|meth|data|attr|obj):", "", doc)
+    return " ".join(doc.split("\n\n", 1)[0].split())
+
+api = []
+for modname in impala_flow.PUBLIC_MODULES:
+    mod = importlib.import_module(modname)
+    names = []
+    for n in getattr(mod, "__all__", []):
+        v = getattr(mod, n)
+        if inspect.isclass(v):
+            kind, sig = "class", ""
+            try:
+                sig = str(inspect.signature(v))
+            except (TypeError, ValueError):
+                pass
+            names.append({"name": n, "kind": kind, "sig": sig, "doc": first_line(v)})
+        elif inspect.isfunction(v):
+            names.append({"name": n, "kind": "function", "sig": str(inspect.signature(v)), "doc": first_line(v)})
+        elif not inspect.ismodule(v):
+            names.append({"name": n, "kind": "constant", "sig": "", "doc": repr(v)[:80]})
+    api.append({"module": modname, "doc": first_line(mod), "names": names})
+facts = {"dists": dists, "commands": commands, "help": helps, "plugins": plugins, "origins": origins, "docs": docs,
+         "api": api}
 print(json.dumps(facts))
 """
 
@@ -120,6 +151,8 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         return _cli(markdown)
     if README_MARK in markdown:
         markdown = markdown.replace(README_MARK, _readme_commands(Path(config["config_file_path"]).resolve().parent))
+    if name == "api.md":
+        return markdown.replace(API_MARK, _api())
     if name == "reference.md":
         root = Path(config["config_file_path"]).resolve().parent
         return markdown.replace(COMPONENTS_MARK, _reference(root))
@@ -221,6 +254,20 @@ def _component(c: dict[str, Any]) -> list[str]:
         out += ["", "Periodic triggers: " + ", ".join(f"`{t['name']}` (every `{t['period']}`)" for t in c["timers"])
                 + "."]
     return out + [""]
+
+
+def _api() -> str:
+    assert _facts is not None
+    lines = []
+    for m in _facts["api"]:
+        lines += [f"## `{m['module']}`", "", m["doc"], "", "| name | kind | what it is |", "|---|---|---|"]
+        for n in m["names"]:
+            sig = n["sig"] if len(n["sig"]) <= 60 else "(...)"
+            shown = f"`{n['name']}{sig}`" if n["kind"] == "function" else f"`{n['name']}`"
+            what = f"`{n['doc']}`" if n["kind"] == "constant" else n["doc"]
+            lines.append(f"| {_cell(shown)} | {n['kind']} | {_cell(what)} |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def _reference(root: Path) -> str:

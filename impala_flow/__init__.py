@@ -29,6 +29,13 @@ from ._session import Session
 from ._summary import ComponentError, RunSummary
 from ._yamlloc import YamlError, load_yaml, location
 
+#: the modules a plugin may import; every other module of the engine is private (its name
+#: starts with ``_``): the ``private_modules`` import contract and tests/test_public_api.py keep it so
+PUBLIC_MODULES = (
+    "impala_flow", "impala_flow.msgs", "impala_flow.io", "impala_flow.plugins", "impala_flow.hookspecs",
+    "impala_flow.cli", "impala_flow.cli.helpers", "impala_flow.testing",
+)
+
 try:
     __version__ = version("impala-flow")
 except PackageNotFoundError:  # running from a source tree that is not installed
@@ -39,5 +46,5 @@ __all__ = [
     "ParamError", "Network", "Connection", "CycleError", "OfflineExecutor", "run_offline",
     "ReplayClock", "MissionClock", "FakeClock", "RunSummary", "ComponentError",
     "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "RealTimeExecutor", "Session", "GraphError",
-    "YamlError", "load_yaml", "location", "output_clash", "__version__",
+    "YamlError", "load_yaml", "location", "output_clash", "PUBLIC_MODULES", "__version__",
 ]

@@ -26,6 +26,9 @@ if TYPE_CHECKING:
 
     from ._registry import Registry
 
+__all__ = ["PROJECT", "hookspec", "hookimpl", "impala_flow_register", "impala_flow_add_commands",
+           "impala_flow_graph_loaded"]
+
 PROJECT = "impala_flow"
 hookspec = pluggy.HookspecMarker(PROJECT)
 hookimpl = pluggy.HookimplMarker(PROJECT)

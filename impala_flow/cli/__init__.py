@@ -76,6 +76,8 @@ def make_parser(with_plugins: bool = True) -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``impala-flow`` console script: parse ``argv``, run the command, return its exit code
+    (0 ok, 1 failed, 2 usage, 130 interrupted); errors are one line on stderr."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")

@@ -22,11 +22,13 @@ from .._summary import ComponentError, RunSummary
 from .._yamlloc import YamlError, load_value
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 
-__all__ = ["add_graph_args", "open_session", "load_spec", "Progress", "run_network", "check_speed",
-           "check_writable_file"]
+__all__ = ["add_graph_args", "parse_vars", "open_session", "load_spec", "Progress", "run_network", "check_speed",
+           "check_writable_file", "check_output_over_inputs", "record_source"]
 
 
 def add_graph_args(p: argparse.ArgumentParser) -> None:
+    """Add the GRAPH argument and the repeatable ``--set COMP.PARAM=VALUE`` and ``--var NAME=VALUE``
+    options to a command's parser (read back by :func:`load_spec`)."""
     p.add_argument("graph", metavar="GRAPH", help="graph YAML file")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="COMP.PARAM=VALUE",
                    help="override a component parameter (repeatable), e.g. --set slam.cell_m=0.4")
@@ -92,6 +94,7 @@ def check_output_over_inputs(path: str, option: str, spec: Any, session: Session
 
 
 def open_session() -> Session:
+    """A :class:`~impala_flow.Session` with the installed plugins; a failure is a one-line CommandError."""
     try:
         return Session()
     except Exception as e:
@@ -99,6 +102,8 @@ def open_session() -> Session:
 
 
 def load_spec(session: Session, args: argparse.Namespace) -> Any:
+    """The graph named by ``args`` (from :func:`add_graph_args`), loaded with its ``--set`` and ``--var``;
+    a bad graph is a one-line CommandError (exit 2) naming the file, line and column."""
     try:
         return session.load(args.graph, args.overrides, parse_vars(args.variables))
     except (GraphError, YamlError) as e:

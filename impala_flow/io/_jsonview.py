@@ -69,6 +69,7 @@ def to_json(value: Any, max_array: int = MAX_ARRAY) -> dict[str, Any]:
 
 
 def encode(value: Any, max_array: int = MAX_ARRAY) -> bytes:
+    """:func:`to_json` of ``value`` as compact UTF-8 JSON bytes (what a JSON channel carries)."""
     return json.dumps(to_json(value, max_array), separators=(",", ":"), allow_nan=False).encode()
 
 

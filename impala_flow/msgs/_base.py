@@ -78,15 +78,18 @@ def invalid_fields(obj: Any) -> str | None:
 
 
 def is_message(obj_or_type: Any) -> bool:
+    """Whether ``obj_or_type`` (a value or a class) is a message type declared with :func:`message`."""
     t = obj_or_type if isinstance(obj_or_type, type) else type(obj_or_type)
     return "__impala_schema__" in t.__dict__
 
 
 def schema_name(t: type) -> str:
+    """The schema name of message type ``t`` (``impala.Pose2D``): what recordings store."""
     return t.__dict__["__impala_schema__"][0]
 
 
 def schema_version(t: type) -> int:
+    """The schema version of message type ``t`` (bumped whenever its fields change)."""
     return t.__dict__["__impala_schema__"][1]
 
 
