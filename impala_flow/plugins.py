@@ -29,7 +29,7 @@ from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
 
 __all__ = ["hookimpl", "Registry", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager",
-           "warn_broken"]
+           "warn_broken", "add_commands"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 
@@ -102,6 +102,21 @@ def warn_broken(registry: Registry) -> None:
     """Log one warning per broken plugin of ``registry``, with the hint to block it."""
     for b in registry.broken.values():
         log.warning("%s; it is left out (%s)", b.describe(), b.hint)
+
+
+def add_commands(pm: PluginManager, subparsers: Any) -> None:
+    """Call every plugin's ``impala_flow_add_commands``, one plugin at a time: a plugin whose hook
+    raises (a library its installation lacks) is left out with one warning (and the ``pip
+    install`` line), the other plugins keep their commands."""
+    for impl in reversed(pm.hook.impala_flow_add_commands.get_hookimpls()):
+        try:
+            impl.function(**{a: subparsers for a in impl.argnames if a == "subparsers"})
+        except Exception as e:  # one plugin's commands must not hide the others'
+            name = impl.plugin_name
+            module = getattr(impl.plugin, "__name__", type(impl.plugin).__name__)
+            b = _broken(name, module, getattr(pm, "versions", {}).get(name, ""), e, getattr(pm, "dists", {}).get(name))
+            log.warning("%s; its commands are left out (%s)",
+                        b.describe().replace("failed to load", "failed to add its commands"), b.hint)
 
 
 def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None = None) -> Registry:

@@ -91,6 +91,18 @@ def test_the_warning_of_an_unrelated_graph_has_the_line(with_chain: Installed, w
     assert "IMPALA_FLOW_DISABLE_PLUGINS=chain" in warn
 
 
+def test_a_plugin_whose_commands_need_the_library_keeps_the_others_commands(installed: Installed) -> None:
+    (installed.site / "cmds_plugin.py").write_text(
+        f"from impala_flow.plugins import hookimpl\n\n\n@hookimpl\ndef impala_flow_add_commands(subparsers):\n"
+        f"    import {LIB}  # noqa: F401\n", encoding="utf-8")
+    installed.add("impala-chain", "1.2", {"chain": "cmds_plugin"}, CHAIN_META)
+    r = installed.run("--help")
+    assert r.returncode == 0, r.stderr
+    assert "simulate" in r.stdout and "demo" in r.stdout  # the commands of the other plugins
+    (warn,) = [line for line in r.stderr.splitlines() if "plugin 'chain'" in line]
+    assert f"plugin 'chain' (cmds_plugin) needs {LIB}: {LINE}; its commands are left out" in warn
+
+
 def test_an_extra_whose_requirement_is_the_module_wins_over_the_plugin_name(installed: Installed) -> None:
     """The plugin 'thing' of 'impala-things' needs LIB, which its extra 'fast' brings (no extra 'thing')."""
     (installed.site / "thing_plugin.py").write_text(IMPORTS_EARLY, encoding="utf-8")
