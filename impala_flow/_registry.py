@@ -24,18 +24,32 @@ class BrokenPlugin:
     """A plugin that failed to import or to register: left out, every other plugin loads.
 
     ``target`` is its entry point (``module:attr``), ``error`` one line
-    (``ModuleNotFoundError: No module named 'x'``)."""
+    (``ModuleNotFoundError: No module named 'x'``). A library the plugin needs but the
+    installation lacks is ``missing`` (``gtsam``), with ``install``, the line that brings it
+    (``pip install 'impala-flow[slam]'``, empty when its distribution declares no such extra)."""
 
     name: str
     target: str = ""
     version: str = ""
     error: str = ""
+    missing: str = ""
+    install: str = ""
 
     @property
     def hint(self) -> str:
         return f"IMPALA_FLOW_DISABLE_PLUGINS={self.name} hides it"
 
+    def _lacks(self) -> str:
+        return f"needs {self.missing}" + (f": {self.install}" if self.install else ", which is not installed")
+
+    @property
+    def needs(self) -> str:
+        """``plugin 'slam' needs gtsam: pip install 'impala-flow[slam]'``, or '' if nothing is missing."""
+        return f"plugin '{self.name}' {self._lacks()}" if self.missing else ""
+
     def describe(self) -> str:
+        if self.missing:
+            return f"plugin '{self.name}' ({self.target}) {self._lacks()}"
         return f"plugin '{self.name}' ({self.target}) failed to load: {self.error}"
 
 
@@ -124,8 +138,11 @@ class Registry:
 
     def why_unknown(self, type_name: str) -> str | None:
         """Why ``type_name`` is not registered when its plugin is broken, else None:
-        ``type 'x.Foo' comes from plugin 'x', which failed to load: ...``."""
+        ``type 'x.Foo' comes from plugin 'x', which failed to load: ...``, or when it lacks a library
+        ``unknown component type slam.RSlam: plugin 'slam' needs gtsam: pip install 'impala-flow[slam]'``."""
         b = self.broken.get(type_name.split(".", 1)[0])
         if b is None:
             return None
+        if b.missing:
+            return f"unknown component type {type_name}: {b.needs}"
         return f"type '{type_name}' comes from plugin '{b.name}', which failed to load: {b.error} ({b.hint})"

@@ -7,6 +7,9 @@ A broken plugin (its module fails to import, or its ``impala_flow_register`` rai
 takes the others down: it is left out (what it registered before failing is removed),
 recorded in ``PluginManager.broken`` / ``Registry.broken`` with its one-line error, logged
 once as a warning, and listed by ``impala-flow plugins``; only graphs using its types fail.
+A plugin failing for a library its installation lacks (``ModuleNotFoundError`` for a module
+outside the plugin) is listed with the ``pip install`` line of the extra that brings it
+(:mod:`impala_flow._extras`: ``plugin 'slam' needs gtsam: pip install 'impala-flow[slam]'``).
 Two plugins claiming one name remain an error of the installation
 (:class:`~impala_flow._registry.NameConflictError`, naming both).
 """
@@ -15,16 +18,18 @@ from __future__ import annotations
 
 import logging
 import os
+from importlib.metadata import Distribution
 from typing import Any
 
 import pluggy
 
 from . import hookspecs
+from ._extras import install_line, missing_module
 from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
 
 __all__ = ["hookimpl", "Registry", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager",
-           "warn_broken"]
+           "warn_broken", "add_commands"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 
@@ -36,17 +41,25 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {msg[0]}" if msg else type(e).__name__
 
 
+def _broken(name: str, target: str, version: str, error: BaseException, dist: Distribution | None) -> BrokenPlugin:
+    """The record of a plugin that failed with ``error``; a missing library comes with its pip line."""
+    missing = missing_module(error, target)
+    return BrokenPlugin(name, target, version, _one_line(error), missing,
+                        install_line(dist, name, missing) if missing else "")
+
+
 def blocked_plugins() -> set[str]:
     return {n.strip() for n in os.environ.get(DISABLE_ENV, "").split(",") if n.strip()}
 
 
 class PluginManager(pluggy.PluginManager):
-    """pluggy's manager, plus the distribution version of every entry-point plugin and the
-    plugins that failed to import (``broken``)."""
+    """pluggy's manager, plus the distribution (``dists``) and its version of every entry-point
+    plugin and the plugins that failed to import (``broken``)."""
 
     def __init__(self) -> None:
         super().__init__(PROJECT)
         self.versions: dict[str, str] = {}
+        self.dists: dict[str, Distribution] = {}
         self.broken: dict[str, BrokenPlugin] = {}
 
 
@@ -69,10 +82,12 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
             try:
                 plugin = ep.load()
             except Exception as e:  # one broken plugin must not disable the others
-                pm.broken[ep.name] = BrokenPlugin(ep.name, ep.value, version, _one_line(e))
+                pm.broken[ep.name] = _broken(ep.name, ep.value, version, e, ep.dist)
                 continue
             pm.register(plugin, name=ep.name)
             pm.versions[ep.name] = version
+            if ep.dist is not None:
+                pm.dists[ep.name] = ep.dist
     for name, obj in (extra or {}).items():
         if name in blocked:
             continue
@@ -89,6 +104,21 @@ def warn_broken(registry: Registry) -> None:
         log.warning("%s; it is left out (%s)", b.describe(), b.hint)
 
 
+def add_commands(pm: PluginManager, subparsers: Any) -> None:
+    """Call every plugin's ``impala_flow_add_commands``, one plugin at a time: a plugin whose hook
+    raises (a library its installation lacks) is left out with one warning (and the ``pip
+    install`` line), the other plugins keep their commands."""
+    for impl in reversed(pm.hook.impala_flow_add_commands.get_hookimpls()):
+        try:
+            impl.function(**{a: subparsers for a in impl.argnames if a == "subparsers"})
+        except Exception as e:  # one plugin's commands must not hide the others'
+            name = impl.plugin_name
+            module = getattr(impl.plugin, "__name__", type(impl.plugin).__name__)
+            b = _broken(name, module, getattr(pm, "versions", {}).get(name, ""), e, getattr(pm, "dists", {}).get(name))
+            log.warning("%s; its commands are left out (%s)",
+                        b.describe().replace("failed to load", "failed to add its commands"), b.hint)
+
+
 def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None = None) -> Registry:
     """Call every plugin's ``impala_flow_register`` with a registry that knows the caller.
 
@@ -98,6 +128,7 @@ def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None 
     pm = pm or make_plugin_manager(extra)
     reg = Registry()
     versions = getattr(pm, "versions", {})
+    dists = getattr(pm, "dists", {})
     reg.broken.update(getattr(pm, "broken", {}))
     for impl in reversed(pm.hook.impala_flow_register.get_hookimpls()):
         name = impl.plugin_name
@@ -111,7 +142,7 @@ def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None 
             raise
         except Exception as e:
             reg.forget(name)
-            reg.broken[name] = BrokenPlugin(name, module, info.version, _one_line(e))
+            reg.broken[name] = _broken(name, module, info.version, e, dists.get(name))
         finally:
             reg._current = None
     reg.plugin_manager = pm  # type: ignore[attr-defined]

@@ -67,9 +67,9 @@ def make_parser(with_plugins: bool = True) -> argparse.ArgumentParser:
         mod.add_parser(sub)
     if with_plugins:
         try:
-            from ..plugins import make_plugin_manager
+            from ..plugins import add_commands, make_plugin_manager
 
-            make_plugin_manager().hook.impala_flow_add_commands(subparsers=sub)
+            add_commands(make_plugin_manager(), sub)
         except Exception as e:  # a broken plugin must not break --help
             logging.getLogger("impala_flow").warning("plugin commands unavailable: %s", e)
     return p

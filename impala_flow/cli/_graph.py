@@ -66,6 +66,11 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"--png {args.png}: no directory '{out.parent}'", EXIT_FAILED)
         check_writable_file(args.png, "--png")
         check_output_over_inputs(args.png, "--png", spec, session)
+        try:  # the engine's one optional library: the picture only
+            import matplotlib  # noqa: F401
+        except ModuleNotFoundError:
+            raise CommandError("--png draws with matplotlib, which is not installed: "
+                               "pip install 'impala-flow[plot]'", EXIT_FAILED) from None
     net = session.build(spec)
     if args.png:
         draw_png(net, out, dpi=args.dpi)

@@ -20,7 +20,8 @@ examples:
   IMPALA_FLOW_DISABLE_PLUGINS=radar impala-flow plugins   without the 'radar' plugin
 
 A plugin that fails to import or to register is listed as BROKEN with its error; every other
-plugin still loads, and only graphs using the broken plugin's types fail.
+plugin still loads, and only graphs using the broken plugin's types fail. A plugin lacking a
+library is listed with the line that brings it: NEEDS gtsam: pip install 'impala-flow[slam]'.
 
 A component type is written '<plugin>.<Class>' in a graph (components: {p: {type: radar.FuzzyPairer}}).
 Input policies: reactive (each sample triggers process), sampling (last value, never triggers),
@@ -132,7 +133,8 @@ def describe_component(type_name: str, cls: type[Component]) -> dict[str, Any]:
 
 def describe_plugins(registry: Registry) -> dict[str, Any]:
     """Every plugin of ``registry`` with its version, components and message types, and the
-    broken ones (``broken``: name, entry point, version, error, hint)."""
+    broken ones (``broken``: name, entry point, version, error, hint, and the missing library with
+    the line that installs it)."""
     plugins = []
     for info in sorted(registry.plugins.values(), key=lambda p: p.name):
         plugins.append({
@@ -140,7 +142,8 @@ def describe_plugins(registry: Registry) -> dict[str, Any]:
             "components": [describe_component(t, registry.components[t]) for t in info.components],
             "types": sorted(info.types),
         })
-    broken = [{"name": b.name, "entry_point": b.target, "version": b.version, "error": b.error, "hint": b.hint}
+    broken = [{"name": b.name, "entry_point": b.target, "version": b.version, "error": b.error, "hint": b.hint,
+               "missing": b.missing, "install": b.install}
               for b in sorted(registry.broken.values(), key=lambda b: b.name)]
     return {"plugins": plugins, "broken": broken}
 
@@ -213,7 +216,11 @@ def format_plugins(data: dict[str, Any]) -> str:
         return "no plugin installed (entry point group 'impala_flow')"
     out: list[str] = []
     for b in broken:
-        out.append(f"{b['name']} {b['version'] or '(no version)'}  [{b['entry_point']}]  BROKEN: {b['error']}")
+        head = f"{b['name']} {b['version'] or '(no version)'}  [{b['entry_point']}]  "
+        if b.get("missing"):  # a library its installation lacks: the line that brings it
+            out.append(head + f"NEEDS {b['missing']}: " + (b.get("install") or "not installed"))
+        else:
+            out.append(head + f"BROKEN: {b['error']}")
         out.append(f"  left out: every other plugin works; graphs using '{b['name']}.*' types fail "
                    f"({b['hint']})")
         out.append("")

@@ -33,11 +33,13 @@ class Installed:
         monkeypatch.delenv("IMPALA_FLOW_DISABLE_PLUGINS", raising=False)
         monkeypatch.syspath_prepend(str(site))
 
-    def add(self, dist: str, version: str, entry_points: dict[str, str]) -> None:
-        """Install a distribution ``dist`` whose ``impala_flow`` entry points are ``entry_points``."""
+    def add(self, dist: str, version: str, entry_points: dict[str, str], metadata: str = "") -> None:
+        """Install a distribution ``dist`` whose ``impala_flow`` entry points are ``entry_points``;
+        ``metadata``: more METADATA lines (``Provides-Extra: x``, ``Requires-Dist: y; extra == "x"``)."""
         info = self.site / f"{dist.replace('-', '_')}-{version}.dist-info"
         info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n", encoding="utf-8")
+        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n{metadata}",
+                                       encoding="utf-8")
         lines = "".join(f"{k} = {v}\n" for k, v in entry_points.items())
         (info / "entry_points.txt").write_text(f"[impala_flow]\n{lines}", encoding="utf-8")
         self.monkeypatch.syspath_prepend(str(self.site))  # invalidates the import caches

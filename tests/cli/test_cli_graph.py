@@ -130,6 +130,19 @@ def test_png_into_a_missing_directory(installed: Installed, write: Write, tmp_pa
     assert r.returncode == 1 and "no directory" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_png_without_matplotlib_names_the_extra(installed: Installed, write: Write, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The core install has no matplotlib: --png says which extra brings it, and writes nothing."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` raises ModuleNotFoundError
+    png = tmp_path / "g.png"
+    code, out, err = installed.main("graph", str(write("radar.yaml", RADAR)), "--png", str(png), capsys=capsys)
+    assert code == 1 and out == "" and not png.exists()
+    assert "--png draws with matplotlib, which is not installed: pip install 'impala-flow[plot]'" in err
+
+
 def test_graph_of_an_invalid_file_exits_2(installed: Installed, write: Write) -> None:
     r = installed.run("graph", str(write("bad.yaml", RADAR.replace("sim.gps", "sim.gsp"))))
     assert r.returncode == 2
