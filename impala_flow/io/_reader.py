@@ -40,7 +40,7 @@ from ._errors import (
     TruncatedRecordingError,
     UnknownSchemaError,
 )
-from ._foxglove import MIRROR_KEY
+from ._mirror import MIRROR_KEY
 from ._registry import CodecRegistry
 
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
