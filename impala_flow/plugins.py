@@ -3,7 +3,8 @@
 Plugins come from the ``impala_flow`` entry-point group, built-in and third-party alike.
 ``IMPALA_FLOW_DISABLE_PLUGINS=radar,foo`` (comma-separated names) blocks plugins. The engine's
 own components (``io``: io.Recorder, io.Replayer) are registered first, by the engine, in every
-manager; they cannot be blocked, and an entry point claiming their name is left out as broken.
+manager; they cannot be blocked, and an entry point claiming their name is left out as broken
+(``IMPALA_FLOW_DISABLE_PLUGINS=io`` hides it).
 
 A broken plugin (its module fails to import, or its ``impala_flow_register`` raises) never
 takes the others down: it is left out (what it registered before failing is removed),
@@ -62,7 +63,8 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
     pm.add_hookspecs(hookspecs)
     pm.register(_engine_io, name=_engine_io.NAME)  # the engine's own: never blocked
     pm.versions[_engine_io.NAME] = __version__
-    blocked = blocked_plugins() - {_engine_io.NAME}
+    asked = blocked_plugins()  # blocking 'io' hides only an entry point claiming the name
+    blocked = asked - {_engine_io.NAME}
     for name in blocked:
         pm.set_blocked(name)
     if entrypoints:
@@ -72,9 +74,10 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
             if pm.is_blocked(ep.name):
                 continue
             version = ep.dist.version if ep.dist else ""
-            if ep.name == _engine_io.NAME and ep.name not in pm.broken:
-                pm.broken[ep.name] = BrokenPlugin(ep.name, ep.value, version, f"'{ep.name}' names the engine's own "
-                                                  "components (io.Recorder, io.Replayer): a stale installation?")
+            if ep.name == _engine_io.NAME:
+                if ep.name not in asked and ep.name not in pm.broken:
+                    pm.broken[ep.name] = BrokenPlugin(ep.name, ep.value, version, f"'{ep.name}' names the engine's "
+                                                      "own components (io.Recorder, io.Replayer): stale installation?")
                 continue
             if pm.get_plugin(ep.name) is not None or ep.name in pm.broken:
                 raise NameConflictError(f"two installed plugins are named '{ep.name}' ({ep.value})")

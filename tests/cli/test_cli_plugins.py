@@ -94,15 +94,17 @@ def test_blocked_plugin_is_not_listed(installed: Installed, capsys: pytest.Captu
 
 def test_the_engines_io_is_listed_and_cannot_be_replaced_or_blocked(installed: Installed,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    """'io' is the engine's own (io.Recorder, io.Replayer): blocking it changes nothing, and an installed
-    entry point claiming the name (an old impala-flow with its io plugin) is left out as broken, with one line."""
+    """'io' is the engine's own (io.Recorder, io.Replayer): an installed entry point claiming the name (an
+    old impala-flow with its io plugin) is left out as broken with one line, which blocking 'io' hides;
+    the engine's io stays either way."""
     installed.add("impala-flow-stale", "0.0.9", {"io": "tests.cli.clitest_plugin"})
-    installed.monkeypatch.setenv("IMPALA_FLOW_DISABLE_PLUGINS", "io")
-    code, out, err = installed.main("plugins", "--json", capsys=capsys)
-    assert code == 0, err
-    plugins = {p["name"]: p for p in json.loads(out)["plugins"]}
-    assert plugins["io"]["module"] == "impala_flow._builtin"
-    assert [c["type"] for c in plugins["io"]["components"]] == ["io.Recorder", "io.Replayer"]
-    assert plugins["io"].get("broken") is None
-    stale = [b for b in json.loads(out).get("broken", []) if b["name"] == "io"]
-    assert len(stale) == 1 and "names the engine's own components" in stale[0]["error"], out
+    for blocked, stale_listed in (("", True), ("io", False)):
+        installed.monkeypatch.setenv("IMPALA_FLOW_DISABLE_PLUGINS", blocked)
+        code, out, err = installed.main("plugins", "--json", capsys=capsys)
+        assert code == 0, err
+        plugins = {p["name"]: p for p in json.loads(out)["plugins"]}
+        assert plugins["io"]["module"] == "impala_flow._builtin"
+        assert [c["type"] for c in plugins["io"]["components"]] == ["io.Recorder", "io.Replayer"]
+        stale = [b for b in json.loads(out).get("broken", []) if b["name"] == "io"]
+        assert len(stale) == stale_listed, out
+        assert all("names the engine's own components" in b["error"] for b in stale)
