@@ -32,7 +32,7 @@ from mcap.writer import CompressionType, IndexType, Writer
 
 import impala_msgs
 from impala_flow import msgs
-from impala_flow.io import COMPRESSIONS, CodecRegistry, MissionReader, MissionWriter
+from impala_flow.io import COMPRESSIONS, CodecRegistry, MissionReader, MissionWriter, run_codecs
 
 MiB = 1 << 20
 BARE = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
@@ -197,7 +197,7 @@ REPLAY_RSS = """
 import sys
 from impala_flow import Component, Input
 from impala_flow.testing import run_components
-from impala_io import Replayer
+from impala_flow.io import Replayer
 class Null(Component):
     def process(self, t):
         for p in self.inputs.values():
@@ -222,7 +222,7 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3, help="repetitions (best time kept)")
     ap.add_argument("--dir", default=None, help="where to write the files (default: tmp)")
     args = ap.parse_args()
-    reg = CodecRegistry.with_standard_types()
+    reg = run_codecs()  # the run's codecs: standard types and the view plugin's mirrors
     result: dict[str, float] = {}
     with tempfile.TemporaryDirectory(dir=args.dir) as d:
         tmp = Path(d)

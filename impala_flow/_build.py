@@ -44,8 +44,11 @@ def _ports(spec: GraphSpec, registry: Registry, problems: list[Problem]) -> Port
                 problems.append(Problem(c.loc, f"component '{c.id}': {why}"))
                 continue
             hint = closest(c.type, registry.components, n=3)
+            # the same class in another plugin (io.FoxgloveBridge moved to view.FoxgloveBridge): say so
+            moved = [t for t in registry.components if t.split(".", 1)[-1] == c.type.split(".", 1)[-1]]
+            also = f"; did you mean '{moved[0]}'? plugin '{moved[0].split('.')[0]}' has it" if len(moved) == 1 else ""
             problems.append(Problem(c.loc, f"component '{c.id}': unknown type '{c.type}'"
-                                    + (f" (closest installed: {hint})" if hint else
+                                    + (f" (closest installed: {hint}{also})" if hint else
                                        f" (installed: {', '.join(sorted(registry.components)) or 'none'})")))
             continue
         values, bad = cls.validate_params(c.params)
@@ -163,7 +166,7 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
     if spec.record is not None:
         if RECORDER_TYPE not in registry.components:
             problems.append(Problem(spec.record_loc, f"record: needs the '{RECORDER_TYPE}' component "
-                                    "(is the io plugin installed and not blocked?)"))
+                                    "(the engine's own: every registry of impala_flow.plugins has it)"))
         else:
             resolve_record(spec, {cid: p[3] for cid, p in ports.items()}, problems)
             # its parameters (chunk_size, flush_period_s, ...) are checked now, not when it is built

@@ -63,7 +63,7 @@ class PluginInfo:
 
 
 class Registry:
-    """Components, message types and codecs by name, each tagged with its plugin.
+    """Components, message types, codecs and mirrors, each tagged with its plugin.
 
     ``registry.add_component(MyFilter)`` inside ``impala_flow_register`` registers
     ``<plugin>.MyFilter``. A name registered twice is an error naming both plugins.
@@ -73,6 +73,7 @@ class Registry:
         self.components: dict[str, type[Component]] = {}
         self.types: dict[str, type] = {}
         self.codecs: dict[str, Any] = {}
+        self.mirrors: dict[Any, tuple[Any, str]] = {}  # type (or key) -> (mirror factory, plugin)
         self.owner: dict[str, str] = {}  # registered name -> plugin name
         self.plugins: dict[str, PluginInfo] = {}
         self.broken: dict[str, BrokenPlugin] = {}  # plugins left out, with their error
@@ -123,6 +124,15 @@ class Registry:
         self._claim(f"codec:{name}")
         self.codecs[name] = codec
 
+    def add_mirror(self, key: Any, make: Any) -> None:
+        """Register ``make(key) -> Mirror | None``, the mirror a recording writes beside every stream
+        of type ``key`` (``object``: of every other type; ``impala_flow.io.TRANSFORMS``: of the frame
+        tree); see :class:`impala_flow.io.Mirror`."""
+        if not callable(make):
+            raise RegistrationError(f"add_mirror expects a callable make(type) -> Mirror | None, got {make!r}")
+        self._claim(_mirror_name(key))
+        self.mirrors[key] = (make, self._current.name if self._current else "impala_flow")
+
     def component(self, type_name: str) -> type[Component]:
         return self.components[type_name]
 
@@ -134,6 +144,8 @@ class Registry:
             self.types.pop(key, None)
             if key.startswith("codec:"):
                 self.codecs.pop(key[len("codec:"):], None)
+        for key in [k for k, (_, owner) in self.mirrors.items() if owner == plugin]:
+            del self.mirrors[key]
         self.plugins.pop(plugin, None)
 
     def why_unknown(self, type_name: str) -> str | None:
@@ -146,3 +158,8 @@ class Registry:
         if b.missing:
             return f"unknown component type {type_name}: {b.needs}"
         return f"type '{type_name}' comes from plugin '{b.name}', which failed to load: {b.error} ({b.hint})"
+
+
+def _mirror_name(key: Any) -> str:
+    what = f"{key.__module__}.{key.__qualname__}" if isinstance(key, type) else str(key)
+    return f"mirror:{what}"

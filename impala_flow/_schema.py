@@ -201,7 +201,8 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                 "path": {"type": "string", "description": "MCAP file written"},
                 "streams": {"type": "array", "items": stream, "default": ["*"]},
                 "compression": {"type": "string", "description": "chunk compression, e.g. zstd, lz4 or none"},
-                "foxglove": {"type": "boolean", "description": "also write Foxglove well-known schemas"},
+                "foxglove": {"type": "boolean", "description":
+                    "also write the mirrors plugins register (the view plugin: Foxglove well-known schemas)"},
                 "chunk_size": {"type": "integer", "minimum": 1024, "maximum": 1 << 28,
                                "description": "bytes per MCAP chunk"},
                 "flush_period_s": {"type": "number", "minimum": 0,

@@ -1,7 +1,10 @@
 """Plugin discovery: a pluggy manager built per run (never at import time).
 
 Plugins come from the ``impala_flow`` entry-point group, built-in and third-party alike.
-``IMPALA_FLOW_DISABLE_PLUGINS=radar,foo`` (comma-separated names) blocks plugins.
+``IMPALA_FLOW_DISABLE_PLUGINS=radar,foo`` (comma-separated names) blocks plugins. The engine's
+own components (``io``: io.Recorder, io.Replayer) are registered first, by the engine, in every
+manager; they cannot be blocked, and an entry point claiming their name is left out as broken
+(``IMPALA_FLOW_DISABLE_PLUGINS=io`` hides it).
 
 A broken plugin (its module fails to import, or its ``impala_flow_register`` raises) never
 takes the others down: it is left out (what it registered before failing is removed),
@@ -23,6 +26,7 @@ from typing import Any
 
 import pluggy
 
+from . import _builtin as _engine_io
 from . import hookspecs
 from ._extras import install_line, missing_module
 from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
@@ -64,10 +68,16 @@ class PluginManager(pluggy.PluginManager):
 
 
 def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool = True) -> PluginManager:
-    """A fresh manager with the installed plugins (minus the blocked) and ``extra`` ones."""
+    """A fresh manager with the engine's own components, the installed plugins (minus the
+    blocked) and ``extra`` ones."""
+    from . import __version__
+
     pm = PluginManager()
     pm.add_hookspecs(hookspecs)
-    blocked = blocked_plugins()
+    pm.register(_engine_io, name=_engine_io.NAME)  # the engine's own: never blocked
+    pm.versions[_engine_io.NAME] = __version__
+    asked = blocked_plugins()  # blocking 'io' hides only an entry point claiming the name
+    blocked = asked - {_engine_io.NAME}
     for name in blocked:
         pm.set_blocked(name)
     if entrypoints:
@@ -76,9 +86,14 @@ def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool =
         for ep in sorted(entry_points(group=PROJECT), key=lambda e: e.name):
             if pm.is_blocked(ep.name):
                 continue
+            version = ep.dist.version if ep.dist else ""
+            if ep.name == _engine_io.NAME:
+                if ep.name not in asked and ep.name not in pm.broken:
+                    pm.broken[ep.name] = BrokenPlugin(ep.name, ep.value, version, f"'{ep.name}' names the engine's "
+                                                      "own components (io.Recorder, io.Replayer): stale installation?")
+                continue
             if pm.get_plugin(ep.name) is not None or ep.name in pm.broken:
                 raise NameConflictError(f"two installed plugins are named '{ep.name}' ({ep.value})")
-            version = ep.dist.version if ep.dist else ""
             try:
                 plugin = ep.load()
             except Exception as e:  # one broken plugin must not disable the others

@@ -28,11 +28,11 @@ EXAMPLE = ROOT / "tests" / "plugin_example" / "impala_flow_example"
 #: message packages (the ``impala_flow.messages`` entry point group): every plugin may import them
 MESSAGE_PACKAGES = {"impala_msgs"}
 PLUGIN_PACKAGES = sorted(
-    ({"impala_radar", "impala_io", "impala_slam", "impala_tracking", "impala_eval", "impala_flow_example"}
+    ({"impala_radar", "impala_slam", "impala_tracking", "impala_eval", "impala_view", "impala_flow_example"}
      | {p.parent.name for p in PLUGINS_DIR.glob("*/__init__.py")}) - MESSAGE_PACKAGES
 )
-#: engine modules still holding a domain mirror until it moves to its plugin (issue 25)
-ENGINE_DOMAIN_EXCEPTIONS = {"impala_flow/io/_foxglove.py"}
+#: third-party libraries only the view plugin imports (the engine mirrors nothing itself)
+VIEW_ONLY = {"foxglove", "foxglove_schemas_protobuf", "google"}
 
 
 def imported_modules(path: Path) -> list[tuple[int, str]]:
@@ -82,13 +82,13 @@ def test_the_scan_sees_imports(tmp_path: Path) -> None:  # guards the scanner it
     (pkg / "__init__.py").write_text("from . import x\n")
     (pkg / "x.py").write_text(
         "from typing import TYPE_CHECKING\n"
-        "if TYPE_CHECKING:\n    import impala_io.recorder\n"
+        "if TYPE_CHECKING:\n    import impala_flow.io\n"
         "def f():\n    from ..msgs import Pose2D\n    import importlib\n"
         "    return importlib.import_module('impala_radar.sim')\n"
     )
     assert imported_modules(pkg / "__init__.py") == [(1, "impala_flow.sub")]
     assert [(line, m) for line, m in imported_modules(pkg / "x.py") if _top(m) != "typing"] == [
-        (3, "impala_io.recorder"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.sim"),
+        (3, "impala_flow.io"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.sim"),
     ]
     mods = {m for _, m in imported_modules(ENGINE / "plugins.py")}
     assert {"pluggy", "impala_flow.hookspecs", "impala_flow._registry"} <= mods
@@ -101,9 +101,16 @@ def test_engine_imports_no_plugin() -> None:
     assert len(files) > 10
     bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
            for f in files for line, mod in imported_modules(f)
-           if _top(mod) in PLUGIN_PACKAGES
-           or (_top(mod) in MESSAGE_PACKAGES and str(f.relative_to(ROOT)) not in ENGINE_DOMAIN_EXCEPTIONS)]
-    assert not bad, "the engine must not import a plugin or a domain message package:\n" + "\n".join(bad)
+           if _top(mod) in PLUGIN_PACKAGES or _top(mod) in MESSAGE_PACKAGES or _top(mod) in VIEW_ONLY]
+    assert not bad, "the engine must not import a plugin, a domain message package or Foxglove:\n" + "\n".join(bad)
+
+
+def test_only_the_view_plugin_imports_foxglove_and_protobuf() -> None:
+    files = [f for p in PLUGINS_DIR.iterdir() if p.name != "impala_view" for f in _python_files(p)]
+    assert len(files) > 10
+    bad = [f"{f.relative_to(ROOT)}:{line}: imports {mod}"
+           for f in files for line, mod in imported_modules(f) if _top(mod) in VIEW_ONLY]
+    assert not bad, "only impala_view imports foxglove and protobuf:\n" + "\n".join(bad)
 
 
 BUILTIN_PRESENT = [p for p in PLUGIN_PACKAGES if (PLUGINS_DIR / p).is_dir()]

@@ -176,13 +176,14 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
 def record_source(session: Session, source: Source, path: str, topics: dict[str, str],
                   compression: str = "zstd", progress: bool | None = None, quiet: bool = False) -> int:
     """Record ``source``'s ports to ``path`` (``topics``: port -> topic) through the
-    installed ``io.Recorder``: the one recording path every mission file goes through.
+    engine's ``io.Recorder``: the one recording path every mission file goes through.
 
     Offline sources give the same samples every time, so chunks are cut by size only:
     the same source gives the same bytes."""
     rec_cls = session.registry.components.get(RECORDER_TYPE)
     if rec_cls is None:
-        raise CommandError(f"recording needs the '{RECORDER_TYPE}' component (io plugin missing or blocked)")
+        raise CommandError(f"recording needs the '{RECORDER_TYPE}' component (the engine's own: every registry "
+                           "of impala_flow.plugins has it)")
     net = Network(name=f"record-{source.name}")
     net.add(source)
     origin = {topic: f"{source.name}.{port}" for port, topic in topics.items()}

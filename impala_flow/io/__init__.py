@@ -2,9 +2,12 @@
 
 - :class:`CodecRegistry`: codecs by Python type and by (schema name, version); one generic
   exact codec (:class:`MessageCodec`) serves every ``@message`` dataclass.
-- :class:`MissionWriter`: chunked, indexed MCAP with metadata and Foxglove mirrors.
+- :class:`MissionWriter`: chunked, indexed MCAP with metadata and the mirrors plugins register
+  (:class:`Mirror`: e.g. the view plugin's Foxglove schemas).
 - :class:`MissionReader`: any valid MCAP file; seek by time, stream chunk by chunk, recover
   cut or damaged files, count what a damaged chunk held (:class:`Loss`).
+- The engine's own components, YAML types ``io.Recorder`` (:class:`Recorder`) and ``io.Replayer``
+  (:class:`Replayer`): record streams of a graph, replay a recording as a source.
 """
 
 from ._codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
@@ -21,18 +24,22 @@ from ._errors import (
     TruncatedRecordingError,
     UnknownSchemaError,
 )
-from ._foxglove import foxglove_topic
 from ._jsonview import encode as encode_json
 from ._jsonview import json_schema, to_json
+from ._mirror import MIRROR_KEY, TRANSFORMS, Mirror
 from ._reader import ChannelInfo, Loss, MissionReader, Recorded, RecordingInfo
+from ._recorder import VEHICLE_POSES, Recorder
 from ._registry import CodecRegistry
+from ._replayer import TIME_JUMP, Replayer
+from ._runcodecs import run_codecs
 from ._writer import COMPRESSIONS, MissionWriter
 
 __all__ = [
     "CodecRegistry", "Codec", "MessageCodec", "BuiltinCodec", "SCHEMA_ENCODING",
     "MESSAGE_ENCODING", "MissionWriter", "COMPRESSIONS", "MissionReader", "RecordingInfo",
-    "ChannelInfo", "Recorded", "Loss", "foxglove_topic", "to_json", "json_schema", "encode_json",
+    "ChannelInfo", "Recorded", "Loss", "Mirror", "MIRROR_KEY", "TRANSFORMS", "to_json", "json_schema", "encode_json",
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
+    "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs",
 ]

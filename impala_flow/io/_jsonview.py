@@ -1,8 +1,9 @@
 """Readable JSON views of any recorded value, for generic MCAP tools and Foxglove's Plot panel.
 
-A stream whose type has no Foxglove schema (speeds, yaw rates, twists, scalars, detections
-counts, any plugin's message) gets a mirror channel ``/foxglove/<topic>`` with message
-encoding ``json`` and a JSON Schema (schema encoding ``jsonschema``) generated from the
+The view plugin's fallback mirror (:mod:`impala_flow.io._mirror`) uses them: a stream whose
+type has no Foxglove schema (speeds, yaw rates, twists, scalars, detections counts, any
+plugin's message) gets a mirror channel ``/foxglove/<topic>`` with message encoding ``json``
+and a JSON Schema (schema encoding ``jsonschema``) generated from the
 message dataclass, so any MCAP tool decodes it without impala-flow:
 
 - message fields by name; ``int``/``float``/``bool``/``str`` as JSON numbers, booleans, strings

@@ -40,7 +40,7 @@ from ._errors import (
     TruncatedRecordingError,
     UnknownSchemaError,
 )
-from ._foxglove import MIRROR_KEY
+from ._mirror import MIRROR_KEY
 from ._registry import CodecRegistry
 
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
@@ -65,7 +65,7 @@ class ChannelInfo:
     message_encoding: str
     count: int
     rate_hz: float  # (count - 1) / recording duration: mean rate over the whole mission
-    mirror_of: str | None  # set on Foxglove mirror channels
+    mirror_of: str | None  # set on mirror channels (the view plugin's Foxglove ones)
     decodable: bool  # a codec of the registry reads it
 
 
@@ -107,7 +107,7 @@ class RecordingInfo:
     metadata: dict[str, dict[str, str]]
     library: str
     profile: str
-    mirror_count: int = 0  # of message_count, the Foxglove mirror copies
+    mirror_count: int = 0  # of message_count, the mirror copies
     attachments: tuple[tuple[str, str, int], ...] = ()  # name, media type, bytes
     verified: bool = False  # counts are readable messages, every CRC and index checked
 
@@ -210,7 +210,7 @@ class MissionReader:
 
     @property
     def topics(self) -> dict[str, str]:
-        """Recorded topics (Foxglove mirrors excluded) -> schema name."""
+        """Recorded topics (mirrors excluded) -> schema name."""
         out = {}
         for ch in self._map.channels.values():
             if MIRROR_KEY not in ch.metadata:

@@ -8,6 +8,7 @@ from typing import Any
 
 from ._codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
 from ._errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
+from ._mirror import Mirror, MirrorFactory
 
 __all__ = ["CodecRegistry", "VERSION_KEY"]
 
@@ -29,6 +30,8 @@ class CodecRegistry:
         self._by_schema: dict[tuple[str, int], tuple[Codec, str]] = {}
         self._by_type: dict[type, Codec] = {}
         self._type_cache: dict[type, Codec | None] = {}
+        self._mirrors: dict[Any, tuple[MirrorFactory, str]] = {}
+        self._mirror_cache: dict[tuple[Any, bool], Mirror | None] = {}
         if builtins:
             for c in builtin_codecs():
                 self.add_codec(c, plugin=ENGINE)
@@ -51,7 +54,7 @@ class CodecRegistry:
 
     @classmethod
     def from_plugins(cls, plugins: Any) -> CodecRegistry:
-        """Standard types plus the message types and codecs of an engine
+        """Standard types plus the message types, codecs and mirrors of an engine
         :class:`impala_flow._registry.Registry` (what the plugins of a run registered)."""
         reg = cls.with_standard_types()
         owner = getattr(plugins, "owner", {})
@@ -61,6 +64,8 @@ class CodecRegistry:
         for name, codec in getattr(plugins, "codecs", {}).items():
             if (codec.schema_name, codec.schema_version) not in reg:
                 reg.add_codec(codec, plugin=owner.get(f"codec:{name}", "?"))
+        for key, (make, plugin) in getattr(plugins, "mirrors", {}).items():
+            reg.add_mirror(key, make, plugin=plugin)
         return reg
 
     # --- registration ------------------------------------------------------------------
@@ -98,6 +103,31 @@ class CodecRegistry:
         self._by_schema[key] = (codec, plugin)
         self._by_type[codec.py_type] = codec
         self._type_cache.clear()
+
+    def add_mirror(self, key: Any, make: MirrorFactory, plugin: str = "?") -> None:
+        """Register the mirror factory of type ``key`` (``object``: the fallback of every other
+        type; :data:`~impala_flow.io.TRANSFORMS`: the frame tree); see :mod:`impala_flow.io._mirror`."""
+        prev = self._mirrors.get(key)
+        if prev is not None and prev[0] is not make:
+            raise SchemaConflictError(f"mirror of {_key(key)} registered twice: by plugin {prev[1]!r} "
+                                      f"and by plugin {plugin!r}")
+        self._mirrors[key] = (make, plugin)
+        self._mirror_cache.clear()
+
+    def mirror_for(self, key: Any, fallback: bool = False) -> Mirror | None:
+        """The mirror of values of type ``key`` (exact type), else with ``fallback`` the
+        fallback mirror (``object``; never for ``None``); None when there is none."""
+        ck = (key, fallback)
+        if ck in self._mirror_cache:
+            return self._mirror_cache[ck]
+        entry = self._mirrors.get(key) if key is not object else None
+        m: Mirror | None = None
+        if entry is not None:
+            m = entry[0](key)
+        elif fallback and key is not type(None) and isinstance(key, type) and object in self._mirrors:
+            m = self._mirrors[object][0](key)
+        self._mirror_cache[ck] = m
+        return m
 
     # --- lookup --------------------------------------------------------------------------
 
@@ -183,6 +213,10 @@ class CodecRegistry:
 
 def _layout(doc: dict[str, Any]) -> tuple:
     return (doc.get("kind"), doc.get("fields"), doc.get("definitions"))
+
+
+def _key(key: Any) -> str:
+    return _qual(key) if isinstance(key, type) else repr(key)
 
 
 def _qual(t: type) -> str:

@@ -18,8 +18,8 @@ from typing import Any
 
 from ._codec import Codec
 from ._errors import CodecError
-from ._foxglove import MIRROR_KEY, TF_SCHEMA, TF_TOPIC, FoxgloveMirror, foxglove_topic, frame_transforms, mirror_for
 from ._mcapwriter import McapWriter
+from ._mirror import FRAMES_MIRROR_OF, MIRROR_KEY, TRANSFORMS, Mirror
 from ._registry import VERSION_KEY, CodecRegistry
 
 __all__ = ["MissionWriter", "COMPRESSIONS"]
@@ -57,7 +57,7 @@ class _Topic:
     codec: Codec
     py_type: type
     strict: bool  # message types: refuse a value of another type
-    mirror: FoxgloveMirror | None
+    mirror: Mirror | None
     mirror_id: int
     parts: Callable[[Any], list] | None = None  # codec's encode_parts, when it has one
     count: int = 0
@@ -68,9 +68,12 @@ class MissionWriter:
 
     ``codecs`` encodes every stream; ``metadata`` maps record names to string dicts
     ("how it was made": graph YAML, resolved parameters, plugin versions) and is written
-    before any data. With ``foxglove=True`` poses, trajectories, grids, point sets, objects,
-    detections and scans are also written in Foxglove schemas on ``/foxglove/<topic>``, and
-    with ``json_views=True`` (the recorder's default) every other stream as JSON there.
+    before any data. With ``foxglove=True`` every stream whose type has a mirror registered in
+    ``codecs`` (:mod:`impala_flow.io._mirror`; the view plugin registers Foxglove schemas of poses,
+    trajectories, grids, point sets, objects, detections and scans on ``/foxglove/<topic>``) is
+    also written mirrored, and with ``json_views=True`` (the recorder's default) every other
+    stream through the fallback mirror (the view plugin's: JSON there). Without mirrors
+    registered, only the streams are written.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
@@ -89,7 +92,8 @@ class MissionWriter:
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
         self._topics: dict[str, _Topic] = {}
-        self._tf_id: int | None = None
+        self._tf_id = 0
+        self._tf: Mirror | None = None  # the frame-tree mirror, once its channel is declared
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
         self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
@@ -123,11 +127,11 @@ class MissionWriter:
         cid = self._mcap.register_channel(
             topic, codec.message_encoding, sid,
             {VERSION_KEY: str(codec.schema_version)})
-        mirror = mirror_for(t, self.json_views) if self.foxglove else None
+        mirror = self.codecs.mirror_for(t, self.json_views) if self.foxglove else None
         mid = 0
         if mirror is not None:
             msid = self._schema_id(mirror.schema_name, mirror.schema_encoding, mirror.schema_data)
-            mid = self._mcap.register_channel(foxglove_topic(topic), mirror.message_encoding, msid,
+            mid = self._mcap.register_channel(mirror.topic_of(topic), mirror.message_encoding, msid,
                                               {MIRROR_KEY: topic})
         strict = codec.py_type is t and hasattr(t, "__impala_schema__")
         self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid,
@@ -171,12 +175,19 @@ class MissionWriter:
                 self.flush()
 
     def write_transforms(self, t_ns: int, transforms: list[tuple[str, str, float, float, float, float]]) -> None:
-        """Write planar frame transforms (parent, child, x, y, z, yaw) on the ``/tf`` channel
-        (``foxglove.FrameTransforms``; readers of impala types skip it like the mirrors)."""
-        if self._tf_id is None:
-            sid = self._schema_id(TF_SCHEMA[0], "protobuf", TF_SCHEMA[1])
-            self._tf_id = self._mcap.register_channel(TF_TOPIC, "protobuf", sid, {MIRROR_KEY: "frames"})
-        pb = frame_transforms(t_ns, transforms)
+        """Write planar frame transforms (parent, child, x, y, z, yaw) through the frame-tree
+        mirror of ``codecs`` (key :data:`~impala_flow.io.TRANSFORMS`; the view plugin's:
+        ``foxglove.FrameTransforms`` on ``/tf``); readers skip it like the other mirrors. Without
+        that mirror registered, nothing is written."""
+        if self._tf is None:
+            tf = self.codecs.mirror_for(TRANSFORMS)
+            if tf is None:
+                return
+            sid = self._schema_id(tf.schema_name, tf.schema_encoding, tf.schema_data)
+            self._tf_id = self._mcap.register_channel(tf.topic_of(FRAMES_MIRROR_OF), tf.message_encoding, sid,
+                                                      {MIRROR_KEY: FRAMES_MIRROR_OF})
+            self._tf = tf
+        pb = self._tf.convert(transforms, t_ns)
         self._mcap.add_message(self._tf_id, t_ns, [pb], len(pb), 0)
 
     def flush(self) -> None:

@@ -90,3 +90,21 @@ def test_blocked_plugin_is_not_listed(installed: Installed, capsys: pytest.Captu
     assert code == 0, err
     names = {p["name"] for p in json.loads(out)["plugins"]}
     assert not names & {"broken", "clitest"}
+
+
+def test_the_engines_io_is_listed_and_cannot_be_replaced_or_blocked(installed: Installed,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """'io' is the engine's own (io.Recorder, io.Replayer): an installed entry point claiming the name (an
+    old impala-flow with its io plugin) is left out as broken with one line, which blocking 'io' hides;
+    the engine's io stays either way."""
+    installed.add("impala-flow-stale", "0.0.9", {"io": "tests.cli.clitest_plugin"})
+    for blocked, stale_listed in (("", True), ("io", False)):
+        installed.monkeypatch.setenv("IMPALA_FLOW_DISABLE_PLUGINS", blocked)
+        code, out, err = installed.main("plugins", "--json", capsys=capsys)
+        assert code == 0, err
+        plugins = {p["name"]: p for p in json.loads(out)["plugins"]}
+        assert plugins["io"]["module"] == "impala_flow._builtin"
+        assert [c["type"] for c in plugins["io"]["components"]] == ["io.Recorder", "io.Replayer"]
+        stale = [b for b in json.loads(out).get("broken", []) if b["name"] == "io"]
+        assert len(stale) == stale_listed, out
+        assert all("names the engine's own components" in b["error"] for b in stale)

@@ -155,18 +155,41 @@ def test_missing_include_undefined_variable_and_bad_set(tmp_path, session):
     assert "--set 'nodot=1': expected COMPONENT.PARAM=VALUE" in text
 
 
-def test_record_section_needs_the_io_plugin(tmp_path, monkeypatch):
-    monkeypatch.setenv("IMPALA_FLOW_DISABLE_PLUGINS", "io")
+def test_the_engines_recorder_cannot_be_blocked(tmp_path, monkeypatch):
+    """io.Recorder and io.Replayer are the engine's own: IMPALA_FLOW_DISABLE_PLUGINS=io leaves them
+    (and only them: the other plugins listed are blocked), and a record: section still records."""
+    monkeypatch.setenv("IMPALA_FLOW_DISABLE_PLUGINS", "io,radar")
     session = Session(extra_plugins={"t": plugin_of(Counter, CollectingSink)})
+    assert {"io.Recorder", "io.Replayer"} <= set(session.registry.components)
+    assert not any(n.startswith("radar.") for n in session.registry.components)
     p = write(tmp_path, "r.yaml", """
         components:
-          src: {type: t.Counter}
+          src: {type: t.Counter, params: {n: 3}}
           sink: t.CollectingSink
         connections: [src.out -> sink.x]
         record: {path: out.mcap, streams: ["src.*"]}
     """)
-    with pytest.raises(GraphError, match="needs the 'io.Recorder' component"):
-        session.load(p)
+    net = session.build(session.load(p))
+    assert type(net.components["record"]).type_name == "io.Recorder"
+    session.run(net)
+    from impala_flow.io import MissionReader
+
+    with MissionReader(tmp_path / "out.mcap") as r:
+        assert [m.data for m in r.messages(["src/out"])] == [0, 1, 2]
+
+
+def test_a_record_section_without_the_recorder_is_refused(tmp_path):
+    """A registry not built by impala_flow.plugins (no engine components) cannot record: one line says why."""
+    from impala_flow._graph import load_graph
+    from impala_flow.plugins import Registry
+
+    p = write(tmp_path, "r.yaml", """
+        components:
+          src: {type: t.Counter}
+        record: {path: out.mcap, streams: ["src.*"]}
+    """)
+    with pytest.raises(GraphError, match="needs the 'io.Recorder' component \\(the engine's own"):
+        load_graph(p, Registry())
 
 
 def test_dot_export_lists_components_and_connections(tmp_path, session):

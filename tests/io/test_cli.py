@@ -15,13 +15,13 @@ from mcap.reader import make_reader
 import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
-from impala_flow.io import CodecRegistry, MissionWriter
+from impala_flow.io import MissionWriter, run_codecs
 
 
 @pytest.fixture
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=2048,
+    with MissionWriter(path, codecs=run_codecs(), chunk_size=2048,
                        metadata={"impala_flow._graph": {"yaml": "name: g"}}) as w:
         w.add_topic("slam/pose", msgs.Pose2D)
         w.add_topic("odo/speed", impala_msgs.Speed)

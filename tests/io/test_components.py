@@ -208,8 +208,7 @@ def test_replayer_reports_bad_files_and_unknown_streams(tmp_path: Path) -> None:
 
 def test_replayer_replays_a_truncated_recording(tmp_path: Path) -> None:
     path = tmp_path / "cut.mcap"
-    with MissionWriter(path, codecs=__import__("impala_flow.io").io.CodecRegistry
-                       .with_standard_types(), chunk_size=1024) as w:
+    with MissionWriter(path, codecs=__import__("impala_flow.io").io.run_codecs(), chunk_size=1024) as w:
         w.add_topic("car/speed", impala_msgs.Speed)
         for k in range(2000):
             w.write("car/speed", k * 1000, impala_msgs.Speed(float(k)))

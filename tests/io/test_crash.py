@@ -16,8 +16,8 @@ import sys
 import numpy as np
 from impala_flow import msgs
 import impala_msgs
-from impala_flow.io import CodecRegistry, MissionWriter
-w = MissionWriter(sys.argv[1], codecs=CodecRegistry.with_standard_types(),
+from impala_flow.io import MissionWriter, run_codecs
+w = MissionWriter(sys.argv[1], codecs=run_codecs(),
                   chunk_size=64 * 1024, metadata={"graph": {"yaml": "name: crash"}})
 w.add_topic("odo/speed", impala_msgs.Speed)
 w.add_topic("radar/image", msgs.Grid)

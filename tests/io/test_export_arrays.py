@@ -12,7 +12,7 @@ import pytest
 import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
-from impala_flow.io import CodecRegistry, MissionWriter
+from impala_flow.io import MissionWriter, run_codecs
 
 RNG = np.random.default_rng(3)
 STATES = [impala_msgs.ObjectStates(ids=np.arange(n, dtype=np.int64) + 10 * k, xy_m=RNG.normal(size=(n, 2)),
@@ -25,7 +25,7 @@ BIG_GRID = msgs.Grid(RNG.random((40, 30)).astype(np.float32), 0.2, 1.0, 2.0)
 @pytest.fixture
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), foxglove=False) as w:
+    with MissionWriter(path, codecs=run_codecs(), foxglove=False) as w:
         w.add_topic("movers/states", impala_msgs.ObjectStates)
         w.add_topic("slam/trajectory", msgs.Trajectory2D)
         w.add_topic("slam/map", msgs.Grid)

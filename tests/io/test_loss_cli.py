@@ -15,7 +15,7 @@ from mcap.reader import make_reader
 import impala_msgs
 from impala_flow import msgs
 from impala_flow.cli import main
-from impala_flow.io import CodecRegistry, MissionReader, MissionWriter
+from impala_flow.io import MissionReader, MissionWriter, run_codecs
 
 N = 1000
 TOPICS = ("odo/speed", "gps/pose")  # recorded; the file also holds their Foxglove mirrors
@@ -24,7 +24,7 @@ TOPICS = ("odo/speed", "gps/pose")  # recorded; the file also holds their Foxglo
 @pytest.fixture
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=4096) as w:
+    with MissionWriter(path, codecs=run_codecs(), chunk_size=4096) as w:
         w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("gps/pose", msgs.Pose2D)
         for i in range(N):
@@ -173,7 +173,7 @@ def test_replay_start_past_the_end_is_refused(mission: Path, tmp_path: Path,
 
 def test_info_lists_attachments_and_mirrors_apart(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "a.mcap"
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types()) as w:
+    with MissionWriter(path, codecs=run_codecs()) as w:
         w.add_topic("slam/pose", msgs.Pose2D)
         for i in range(10):
             w.write("slam/pose", i, msgs.Pose2D(0.0, 0.0, 0.0))

@@ -12,16 +12,15 @@ from mcap.reader import make_reader
 from impala_eval import TrajectoryEvaluator
 from impala_eval.report import format_metrics
 from impala_flow import msgs
-from impala_flow.io import CodecRegistry, MissionWriter
+from impala_flow.io import MissionWriter, Replayer, run_codecs
 from impala_flow.testing import run_components
-from impala_io import Replayer
 
 N = 600
 
 
 def test_evaluator_report_states_the_gap(tmp_path: Path) -> None:
     path = tmp_path / "m.mcap"
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=4096, foxglove=False) as w:
+    with MissionWriter(path, codecs=run_codecs(), chunk_size=4096, foxglove=False) as w:
         w.add_topic("truth/pose", msgs.Pose2D)
         w.add_topic("slam/pose", msgs.Pose2D)
         for i in range(N):

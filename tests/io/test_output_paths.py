@@ -13,13 +13,13 @@ import yaml
 import impala_msgs
 from impala_flow._offline import MAX_TIMER_FIRINGS
 from impala_flow.cli import main
-from impala_flow.io import CodecRegistry, MissionWriter
+from impala_flow.io import MissionWriter, run_codecs
 
 YEAR_NS = 365 * 86_400 * 10**9
 
 
 def _mission(path: Path, times_ns: list[int]) -> Path:
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), chunk_size=4096) as w:
+    with MissionWriter(path, codecs=run_codecs(), chunk_size=4096) as w:
         w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("gyro/yaw_rate", impala_msgs.YawRate)
         for i, t in enumerate(times_ns):

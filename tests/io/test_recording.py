@@ -17,6 +17,7 @@ from impala_flow.io import (
     MissionReader,
     MissionWriter,
     UnknownSchemaError,
+    run_codecs,
 )
 from impala_flow.msgs import message
 
@@ -150,7 +151,7 @@ def test_unknown_schema_names_the_channel_and_others_still_read(tmp_path: Path) 
     class Secret:
         code: int
 
-    writer_reg = CodecRegistry.with_standard_types()
+    writer_reg = run_codecs()
     writer_reg.add_type(Secret, plugin="secretplugin")
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=writer_reg) as w:

@@ -11,7 +11,7 @@ import json
 import numpy as np
 
 from impala_flow._session import Session
-from impala_flow.io import CodecRegistry, MissionReader, MissionWriter
+from impala_flow.io import MissionReader, MissionWriter, run_codecs
 
 from .conftest import GRAPH
 
@@ -20,7 +20,7 @@ def _with_nan_beams(src, dst, fraction=0.1, seed=1) -> int:
     """A copy of the mission ``src`` with every bin of ``fraction`` of its beams NaN; how many."""
     rng = np.random.default_rng(seed)
     n = 0
-    with MissionReader(src) as r, MissionWriter(dst, codecs=CodecRegistry.with_standard_types()) as w:
+    with MissionReader(src) as r, MissionWriter(dst, codecs=run_codecs()) as w:
         for topic in r.topics:
             w.add_topic(topic, r.topic_type(topic))
         for m in r.messages():

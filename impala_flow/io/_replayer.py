@@ -1,4 +1,4 @@
-"""io.Replayer: a recorded mission as a source; recorded topics become output ports."""
+"""io.Replayer (the engine's own component): a recorded mission as a source; recorded topics become output ports."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import logging
 from collections.abc import Iterator
 from typing import Any
 
-from impala_flow import Component, Input, Output, Param, Source
-from impala_flow.io import MissionReader, UnknownSchemaError
-
-from ._codecs import run_codecs
+from .._component import Component, Input, Output, Param, Source
+from ._errors import UnknownSchemaError
+from ._reader import MissionReader
+from ._runcodecs import run_codecs
 
 __all__ = ["Replayer", "TIME_JUMP"]
 

@@ -15,7 +15,8 @@ from mcap.reader import make_reader
 
 import impala_msgs
 from impala_flow import msgs
-from impala_flow.io import CodecRegistry, MissionWriter, foxglove_topic
+from impala_flow.io import CodecRegistry, MissionWriter
+from impala_view.mirrors import foxglove_topic
 
 
 def _mirrors(path: Path) -> dict[str, tuple]:

@@ -1,4 +1,4 @@
-"""io.Recorder: record any set of streams of a running graph to one MCAP file."""
+"""io.Recorder (the engine's own component): record any set of streams of a running graph to one MCAP file."""
 
 from __future__ import annotations
 
@@ -8,11 +8,10 @@ from typing import Any
 
 import yaml
 
-from impala_flow import Component, Input, Output, Param
-from impala_flow.io import COMPRESSIONS, MissionWriter
-from impala_flow.msgs import Pose2D, is_message
-
-from ._codecs import run_codecs
+from .._component import Component, Input, Output, Param
+from ..msgs import Pose2D, is_message
+from ._runcodecs import run_codecs
+from ._writer import COMPRESSIONS, MissionWriter
 
 __all__ = ["Recorder", "VEHICLE_POSES"]
 
@@ -34,10 +33,11 @@ class Recorder(Component):
     topics = Param(dict, default={}, doc="topic -> 'component.port' it records")
     compression = Param(str, default="zstd", choices=tuple(COMPRESSIONS),
                         doc="chunk compression")
-    foxglove = Param(bool, default=True, doc="also write poses, grids, points, objects, detections, scans "
-                     "in Foxglove schemas on /foxglove/<topic>")
-    json_views = Param(bool, default=True, doc="and every other stream as JSON there (generic MCAP tools, "
-                       "Foxglove's Plot panel; needs foxglove)")
+    foxglove = Param(bool, default=True, doc="also write the mirrors plugins register (the view plugin: poses, "
+                     "grids, points, objects, detections, scans in Foxglove schemas on /foxglove/<topic>, "
+                     "frames on /tf)")
+    json_views = Param(bool, default=True, doc="and every other stream through the fallback mirror (the view "
+                       "plugin: as JSON there, for generic MCAP tools and Foxglove's Plot panel; needs foxglove)")
     chunk_size = Param(int, default=1 << 20, ge=1024, le=1 << 28,
                        doc="bytes per chunk before compression (the writer holds at most one chunk)")
     maxsize = Param(int, default=4096, ge=1, le=1 << 16, doc="samples queued per input before blocking")

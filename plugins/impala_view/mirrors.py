@@ -1,4 +1,5 @@
-"""Mirrors of standard messages in Foxglove's well-known protobuf schemas.
+"""Mirrors of messages in Foxglove's well-known protobuf schemas (registered by the view plugin
+through ``registry.add_mirror``; the engine's writer knows no Foxglove schema).
 
 A recording opens in Foxglove as it is: next to the exact ``impala-flow-bin`` channel
 ``slam/pose``, the writer adds the channel ``/foxglove/slam/pose`` (see
@@ -24,16 +25,17 @@ RadarScan           foxglove.RawImage         ``32FC1``, one row per beam, one c
 
 Every other type (speeds, yaw rates, twists, any plugin's message, plain numbers) is
 mirrored as JSON with a JSON Schema generated from its dataclass
-(:mod:`impala_flow.io._jsonview`), so every stream of a recording has a channel generic
+(:func:`impala_flow.io.json_schema`), so every stream of a recording has a channel generic
 MCAP tools and Foxglove's Plot panel decode. The mirror channels carry the metadata
-``impala_flow.mirror_of = <topic>``; readers of impala types skip them.
+``impala_flow.mirror_of = <topic>`` (:data:`impala_flow.io.MIRROR_KEY`); readers of impala
+types skip them. The frame tree (the recorder's pose topics and the radar mount) is written as
+``foxglove.FrameTransforms`` on ``/tf`` (:func:`frame_transforms`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -60,33 +62,19 @@ from google.protobuf.descriptor_pb2 import FileDescriptorSet
 from google.protobuf.duration_pb2 import Duration
 from google.protobuf.timestamp_pb2 import Timestamp
 
-import impala_msgs  # moves out of the engine with the Foxglove mirrors (impala_view)
+import impala_msgs
+from impala_flow import msgs
+from impala_flow.io import Mirror, encode_json, json_schema
 
-from .. import msgs
-from . import _jsonview as jsonview
-
-__all__ = ["FoxgloveMirror", "mirror_for", "foxglove_topic", "file_descriptor_set",
-           "MIRROR_KEY", "FOXGLOVE_PREFIX", "TF_TOPIC", "frame_transforms"]
+__all__ = ["mirror_for", "json_mirror", "tf_mirror", "foxglove_topic", "file_descriptor_set",
+           "FOXGLOVE_PREFIX", "TF_TOPIC", "frame_transforms"]
 
 FOXGLOVE_PREFIX = "/foxglove/"
-MIRROR_KEY = "impala_flow.mirror_of"
 
 
 def foxglove_topic(topic: str) -> str:
     """Topic of the Foxglove mirror of ``topic`` (``slam/pose`` -> ``/foxglove/slam/pose``)."""
     return FOXGLOVE_PREFIX + topic.lstrip("/")
-
-
-@dataclass(frozen=True)
-class FoxgloveMirror:
-    """How one impala type is mirrored: schema (name, data, encoding), message encoding,
-    converter."""
-
-    schema_name: str
-    schema_data: bytes
-    convert: Callable[[Any, int], bytes]  # (value, t_ns) -> serialized message
-    schema_encoding: str = "protobuf"  # the FileDescriptorSet; "jsonschema" for JSON views
-    message_encoding: str = "protobuf"
 
 
 def file_descriptor_set(message_class: Any) -> bytes:
@@ -260,33 +248,39 @@ _TABLE: dict[type, tuple[Any, Callable[[Any, int], bytes]]] = {
     impala_msgs.RadarDetections: (PointCloud, _detections),
     impala_msgs.RadarScan: (RawImage, _scan),
 }
-_cache: dict[tuple[type, bool], FoxgloveMirror | None] = {}
+_cache: dict[tuple[type, bool], Mirror | None] = {}
 
 
-def mirror_for(t: type, json_views: bool = False) -> FoxgloveMirror | None:
+def mirror_for(t: type, json_views: bool = False) -> Mirror | None:
     """The Foxglove mirror of type ``t``: its Foxglove schema (table above), else, with
-    ``json_views``, its JSON view (:mod:`impala_flow.io._jsonview`); None for ``None``."""
+    ``json_views``, its JSON view (:func:`impala_flow.io.json_schema`); None for ``None``."""
     key = (t, json_views)
     if key in _cache:
         return _cache[key]
     entry = _TABLE.get(t)
     if entry is not None:
         pb, convert = entry
-        m: FoxgloveMirror | None = FoxgloveMirror(pb.DESCRIPTOR.full_name, file_descriptor_set(pb), convert)
+        m: Mirror | None = Mirror(pb.DESCRIPTOR.full_name, file_descriptor_set(pb), convert,
+                                  prefix=FOXGLOVE_PREFIX)
     elif t is type(None) or not json_views:
         m = None
     else:
-        name, schema = jsonview.json_schema(t)
-        m = FoxgloveMirror(name, schema, _json_convert, "jsonschema", "json")
+        name, schema = json_schema(t)
+        m = Mirror(name, schema, _json_convert, "jsonschema", "json", prefix=FOXGLOVE_PREFIX)
     _cache[key] = m
     return m
+
+
+def json_mirror(t: type) -> Mirror | None:
+    """The fallback mirror (registered for ``object``): the JSON view of any type but ``None``."""
+    return mirror_for(t, json_views=True)
 
 
 #: topic of the frame tree (``foxglove.FrameTransforms``), next to the mirrors
 TF_TOPIC = "/tf"
 
 
-def frame_transforms(t_ns: int, transforms: list[tuple[str, str, float, float, float, float]]) -> bytes:
+def frame_transforms(transforms: list[tuple[str, str, float, float, float, float]], t_ns: int) -> bytes:
     """``foxglove.FrameTransforms`` of planar transforms (parent, child, x, y, z, yaw): the pose
     of ``child`` in ``parent``, stamped ``t_ns``."""
     stamp = _stamp(t_ns)
@@ -299,8 +293,11 @@ def frame_transforms(t_ns: int, transforms: list[tuple[str, str, float, float, f
     return FrameTransforms(transforms=out).SerializeToString()
 
 
-TF_SCHEMA = (FrameTransforms.DESCRIPTOR.full_name, file_descriptor_set(FrameTransforms))
+def tf_mirror(key: Any = None) -> Mirror:
+    """The frame-tree mirror (registered for :data:`impala_flow.io.TRANSFORMS`): ``/tf``."""
+    return Mirror(FrameTransforms.DESCRIPTOR.full_name, file_descriptor_set(FrameTransforms), frame_transforms,
+                  topic=TF_TOPIC)
 
 
 def _json_convert(value: Any, t_ns: int) -> bytes:
-    return jsonview.encode(value)
+    return encode_json(value)

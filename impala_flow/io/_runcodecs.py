@@ -1,16 +1,16 @@
-"""The codec registry of a run: standard types plus the message types plugins register."""
+"""The codec registry of a run: standard types plus the message types and mirrors plugins register."""
 
 from __future__ import annotations
 
 import logging
 
-from impala_flow.io import CodecRegistry
+from ._registry import CodecRegistry
 
 log = logging.getLogger(__name__)
 
 
 def run_codecs(registry: object | None = None) -> CodecRegistry:
-    """Standard types, then every message type and codec the run's plugins registered.
+    """Standard types, then every message type, codec and mirror the run's plugins registered.
 
     ``registry`` is the run's (``Component.registry``, set when a graph is built); without
     one (validation, hand-wired components) the installed plugins are loaded again here,
@@ -19,7 +19,7 @@ def run_codecs(registry: object | None = None) -> CodecRegistry:
     if registry is not None:
         return CodecRegistry.from_plugins(registry)
     try:
-        from impala_flow.plugins import load_registry
+        from ..plugins import load_registry
 
         return CodecRegistry.from_plugins(load_registry())
     except Exception as e:  # noqa: BLE001 - never fail a recording for an unrelated plugin

@@ -1,4 +1,4 @@
-"""The io plugin's subcommand ``impala-flow view``: stream a recording to Foxglove live."""
+"""The view plugin's subcommand ``impala-flow view``: stream a recording to Foxglove live."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ import sys
 from impala_flow import ComponentError, Network
 from impala_flow.cli import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 from impala_flow.cli.helpers import Progress, check_speed, open_session
-from impala_flow.io import RecordingError
+from impala_flow.io import TIME_JUMP, RecordingError, Replayer
 
 from .bridge import MIN_BACKLOG, FoxgloveBridge
-from .replayer import TIME_JUMP, Replayer
 
 __all__ = ["add_commands"]
 
@@ -19,13 +18,13 @@ __all__ = ["add_commands"]
 def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "view", help="stream a recording to Foxglove over WebSocket (live view)",
-        description="Replay FILE.mcap at --speed through io.FoxgloveBridge: open Foxglove, "
+        description="Replay FILE.mcap at --speed through view.FoxgloveBridge: open Foxglove, "
         "'Open connection' > 'Foxglove WebSocket', ws://HOST:PORT. Poses, trajectories, grids, point sets and "
         "object states come in Foxglove's schemas (3D panel), every other stream as JSON (Plot panel). "
         "Listens on 127.0.0.1 unless --host says otherwise. A client that reads slowly costs at most --client-mb "
         "(messages over --max-message-mb are not sent; nothing is sent while more than --max-clients are "
         "connected); every drop is counted in the summary. "
-        "Ctrl-C stops. The same bridge works in any graph: add a component of type io.FoxgloveBridge.",
+        "Ctrl-C stops. The same bridge works in any graph: add a component of type view.FoxgloveBridge.",
         epilog="example: impala-flow view out/beynes.mcap --speed 2 --loop",
     )
     p.add_argument("file", help="recording (MCAP)")

@@ -1,15 +1,15 @@
-"""io.FoxgloveBridge: a live view of any graph in Foxglove, over Foxglove's WebSocket protocol.
+"""view.FoxgloveBridge: a live view of any graph in Foxglove, over Foxglove's WebSocket protocol.
 
 The server is the ``foxglove-sdk`` package's (subprotocol ``foxglove.sdk.v1``, the successor
 of ``foxglove.websocket.v1`` with the same operations; the Foxglove app speaks both): open
 Foxglove, "Open connection", "Foxglove WebSocket", ``ws://HOST:PORT``. One input per stream,
 named after its topic (``topics``: topic -> the ``component.port`` it shows, as for
 ``io.Recorder``). Each sample is sent stamped with its own time (``log_time`` = its int ns),
-the same way a recording shows it (:mod:`impala_flow.io._foxglove`):
+the same way a recording shows it (:mod:`impala_view.mirrors`):
 
 - poses, trajectories, grids, point sets, objects, detections and scans in Foxglove's
   protobuf schemas (the 3D, Image and Plot panels show them);
-- every other value as its JSON view with a JSON Schema (:mod:`impala_flow.io._jsonview`):
+- every other value as its JSON view with a JSON Schema (:func:`impala_flow.io.json_schema`):
   fields by name, arrays over ``max_array`` values as their shape, plain numbers as
   ``{"value": x}``, so the Plot panel plots any scalar stream (speeds, yaw rates, counters).
 
@@ -45,9 +45,8 @@ from typing import Any
 
 from impala_flow import Component, Input, Param
 from impala_flow.io import encode_json, json_schema, to_json
-from impala_flow.io._foxglove import mirror_for
 
-__all__ = ["FoxgloveBridge", "to_json"]  # to_json: the JSON view (impala_flow.io._jsonview)
+__all__ = ["FoxgloveBridge", "to_json"]  # to_json: the JSON view (impala_flow.io.to_json)
 
 log = logging.getLogger(__name__)
 
@@ -217,6 +216,8 @@ class FoxgloveBridge(Component):
             log.warning("%s: %s (dropped and counted; said once per topic)", self.name, why)
 
     def _channel(self, topic: str, value: Any) -> tuple[Any, Any]:
+        from .mirrors import mirror_for  # protobuf is imported when the first sample is shown
+
         fx = self._fx
         mirror = mirror_for(type(value))
         if mirror is not None:

@@ -1,4 +1,4 @@
-"""io.FoxgloveBridge and `impala-flow view`: a real WebSocket client speaking Foxglove's
+"""view.FoxgloveBridge and `impala-flow view`: a real WebSocket client speaking Foxglove's
 protocol receives serverInfo and advertise, subscribes, and decodes the binary messages
 against the recording they came from. The client offers both subprotocols the Foxglove app
 offers: foxglove-sdk >= 0.30 answers foxglove.sdk.v1, the successor of foxglove.websocket.v1
@@ -24,8 +24,8 @@ from websockets.sync.client import connect
 
 from impala_flow import msgs
 from impala_flow.cli import main
-from impala_flow.io import CodecRegistry, MissionReader, MissionWriter
-from impala_io.bridge import to_json
+from impala_flow.io import MissionReader, MissionWriter, run_codecs
+from impala_view.bridge import to_json
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 CLI = [sys.executable, "-c", "import sys; from impala_flow.cli import main; sys.exit(main())"]
@@ -48,7 +48,7 @@ def grids(tmp_path_factory: pytest.TempPathFactory) -> Path:
     a well-behaved client reads to know how far the view has gone)."""
     path = tmp_path_factory.mktemp("view") / "grids.mcap"
     grid = msgs.Grid(np.zeros((1024, 1024), np.float32), 0.1, 0.0, 0.0)
-    with MissionWriter(path, codecs=CodecRegistry.with_standard_types(), foxglove=False) as w:
+    with MissionWriter(path, codecs=run_codecs(), foxglove=False) as w:
         w.add_topic("map/grid", msgs.Grid)
         w.add_topic("tick", int)
         for k in range(20):
