@@ -20,11 +20,11 @@ from typing import Any
 import pluggy
 
 from . import hookspecs
-from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
+from ._registry import BrokenPlugin, MissionSource, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
 
-__all__ = ["hookimpl", "Registry", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager",
-           "warn_broken"]
+__all__ = ["hookimpl", "Registry", "MissionSource", "NameConflictError", "make_plugin_manager", "load_registry",
+           "DISABLE_ENV", "PluginManager", "warn_broken"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 
