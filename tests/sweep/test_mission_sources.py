@@ -84,3 +84,17 @@ def test_a_third_party_source_is_listed_and_a_clash_names_both_plugins(tmp_path:
     with pytest.raises(NameConflictError, match="'mission:simulate' is registered by two plugins: ") as e:
         Session(extra_plugins={"other": _Other("simulate")})
     assert "'radar'" in str(e.value) and "'other'" in str(e.value)
+
+
+def test_plugins_lists_the_mission_sources(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from impala_flow import cli
+
+    assert cli.main(["plugins", "--json"]) == 0
+    plugins = {p["name"]: p for p in json.loads(capsys.readouterr().out)["plugins"]}
+    assert [m["name"] for m in plugins["radar"]["mission_sources"]] == ["simulate"]
+    assert all(not p["mission_sources"] for name, p in plugins.items() if name != "radar")
+    assert cli.main(["plugins"]) == 0
+    text = capsys.readouterr().out
+    assert "  mission source: simulate (simulate a scenario (name or YAML file) with a seed, for a duration)" in text
