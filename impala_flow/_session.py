@@ -17,7 +17,7 @@ from typing import Any
 
 from ._build import build, validate
 from ._clock import ReplayClock, parse_speed
-from ._graph import MAX_GRAPH_BYTES, GraphSpec, _read, load_graph, load_graph_text, resolve_graph
+from ._graph import GraphSpec, graph_files, load_graph, load_graph_text, resolve_graph
 from ._network import Network
 from ._offline import OfflineExecutor
 from ._paths import resolve_paths
@@ -82,12 +82,7 @@ class Session:
         """The graph file ``path`` and the files it includes (each once, the includes sorted):
         what a graph is made from, e.g. to fingerprint it. An unreadable graph gives ``[path]``
         alone (loading it says why)."""
-        top = Path(path).resolve()
-        try:
-            _, chain = _read(top, [], (top,), {top}, [MAX_GRAPH_BYTES])
-        except Exception:  # an unreadable graph: load() reports it
-            return [str(path)]
-        return [str(path)] + sorted(str(p) for _, p in chain)
+        return graph_files(path)
 
     def load_text(self, text: str, name: str = "<graph>", **kw: Any) -> GraphSpec:
         spec = load_graph_text(text, self.registry, name=name, **kw)
