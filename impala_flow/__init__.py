@@ -3,7 +3,9 @@
 The public API. A plugin imports only these modules (a contract in pyproject.toml checks it):
 
 - ``impala_flow``: components, ports, parameters, samples, networks, executors, clocks, the
-  session, errors, located YAML for a plugin's own files;
+  session (which also checks a graph without running it: ``Session.problems``,
+  ``Session.graph_files``), errors, located YAML for a plugin's own files, the
+  ``closest``/``did_you_mean`` hints of every one-line error;
 - :mod:`impala_flow.msgs`: the message contract and the domain-free geometry types;
 - :mod:`impala_flow.io`: recording and replay (MCAP readers, writers, codecs, JSON views);
 - :mod:`impala_flow.plugins`: ``hookimpl`` and the hooks (:mod:`impala_flow.hookspecs`);
@@ -26,6 +28,7 @@ from ._ports import EmptyInput, InputPort, OutOfHistory, OutputPort
 from ._realtime import RealTimeExecutor
 from ._sample import Sample
 from ._session import Session
+from ._spec import GraphSpec, closest, did_you_mean
 from ._summary import ComponentError, RunSummary
 from ._yamlloc import YamlError, load_yaml, location
 
@@ -46,5 +49,6 @@ __all__ = [
     "ParamError", "Network", "Connection", "CycleError", "OfflineExecutor", "run_offline",
     "ReplayClock", "MissionClock", "FakeClock", "RunSummary", "ComponentError",
     "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "RealTimeExecutor", "Session", "GraphError",
-    "YamlError", "load_yaml", "location", "output_clash", "PUBLIC_MODULES", "__version__",
+    "YamlError", "load_yaml", "location", "output_clash", "GraphSpec", "closest", "did_you_mean",
+    "PUBLIC_MODULES", "__version__",
 ]

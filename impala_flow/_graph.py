@@ -70,7 +70,7 @@ from ._yamlloc import (
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
     "load_graph_text", "resolve_graph", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
-    "MAX_GRAPH_BYTES",
+    "MAX_GRAPH_BYTES", "graph_files",
 ]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
@@ -516,3 +516,14 @@ def _parse_connection(item: Any, loc: Loc | None, problems: list[Problem]) -> Co
                                      "expected 'component.output -> component.input'"))
         return None
     return ConnectionSpec(m.group(1), m.group(2), m.group(3), m.group(4), bool(m.group(5)), loc)
+
+
+def graph_files(path: str | Path) -> list[str]:
+    """The graph file ``path`` and the files it includes (each once, the includes sorted);
+    an unreadable graph gives ``[path]`` alone (loading it says why)."""
+    top = Path(path).resolve()
+    try:
+        _, chain = _read(top, [], (top,), {top}, [MAX_GRAPH_BYTES])
+    except Exception:  # an unreadable graph: load_graph reports it
+        return [str(path)]
+    return [str(path)] + sorted(str(p) for _, p in chain)

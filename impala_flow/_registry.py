@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from ._component import Component
 from .msgs import BUILTIN_TYPES, installed_packages, is_message, schema_name
 
-__all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin"]
+__all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin", "MissionSource"]
 
 
 class RegistrationError(ValueError):
@@ -53,6 +54,17 @@ class BrokenPlugin:
         return f"plugin '{self.name}' ({self.target}) failed to load: {self.error}"
 
 
+@dataclass(frozen=True)
+class MissionSource:
+    """A way to make a mission recording, offered by a plugin (:meth:`Registry.add_mission_source`):
+    ``make(session, scenario, path, *, seed=None, duration_s=None)`` writes the recording to ``path``."""
+
+    name: str
+    make: Callable[..., None]
+    help: str = ""
+    plugin: str = ""
+
+
 @dataclass
 class PluginInfo:
     name: str
@@ -74,6 +86,8 @@ class Registry:
         self.types: dict[str, type] = {}
         self.codecs: dict[str, Any] = {}
         self.mirrors: dict[Any, tuple[Any, str]] = {}  # type (or key) -> (mirror factory, plugin)
+        #: name -> a plugin's way to make a mission recording (:meth:`add_mission_source`)
+        self.mission_sources: dict[str, MissionSource] = {}
         self.owner: dict[str, str] = {}  # registered name -> plugin name
         self.plugins: dict[str, PluginInfo] = {}
         self.broken: dict[str, BrokenPlugin] = {}  # plugins left out, with their error
@@ -132,6 +146,18 @@ class Registry:
             raise RegistrationError(f"add_mirror expects a callable make(type) -> Mirror | None, got {make!r}")
         self._claim(_mirror_name(key))
         self.mirrors[key] = (make, self._current.name if self._current else "impala_flow")
+    def add_mission_source(self, name: str, make: Callable[..., None], help: str = "") -> MissionSource:
+        """Offer ``make(session, scenario, path, *, seed=None, duration_s=None)`` under ``name``
+        (not prefixed, as a command): it writes one mission recording made from ``scenario``
+        to ``path`` (a new file) and raises with a one-line message when it cannot. Other
+        plugins (a sweep) and tools look sources up in :attr:`mission_sources` instead of
+        running another plugin's command line."""
+        if not callable(make):
+            raise RegistrationError(f"add_mission_source expects a callable, got {make!r}")
+        self._claim(f"mission:{name}")
+        source = MissionSource(name, make, help, self.owner[f"mission:{name}"])
+        self.mission_sources[name] = source
+        return source
 
     def component(self, type_name: str) -> type[Component]:
         return self.components[type_name]
@@ -144,6 +170,8 @@ class Registry:
             self.types.pop(key, None)
             if key.startswith("codec:"):
                 self.codecs.pop(key[len("codec:"):], None)
+            if key.startswith("mission:"):
+                self.mission_sources.pop(key[len("mission:"):], None)
         for key in [k for k, (_, owner) in self.mirrors.items() if owner == plugin]:
             del self.mirrors[key]
         self.plugins.pop(plugin, None)

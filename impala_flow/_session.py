@@ -15,12 +15,14 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ._build import build
+from ._build import build, validate
 from ._clock import ReplayClock, parse_speed
-from ._graph import GraphSpec, load_graph, load_graph_text
+from ._graph import GraphSpec, graph_files, load_graph, load_graph_text, resolve_graph
 from ._network import Network
 from ._offline import OfflineExecutor
+from ._paths import resolve_paths
 from ._registry import Registry
+from ._spec import Problem
 from ._summary import RunSummary
 from .plugins import load_registry, make_plugin_manager, warn_broken
 
@@ -62,6 +64,25 @@ class Session:
         spec = load_graph(path, self.registry, overrides, variables)
         self.pm.hook.impala_flow_graph_loaded(graph=spec)
         return spec
+
+    def problems(self, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                 variables: dict[str, Any] | None = None) -> tuple[GraphSpec, list[Problem]]:
+        """Read, resolve and validate a graph as :meth:`load` does, but return every problem
+        found (each with ``.message`` and ``.loc``) instead of raising, so a caller can drop
+        the ones it expects (e.g. a mission file that does not exist yet) before raising
+        ``GraphError(problems)``. A file that cannot be read at all still raises
+        :class:`~impala_flow.GraphError`."""
+        spec, problems = resolve_graph(path, overrides, variables)
+        problems += resolve_paths(spec, self.registry)
+        problems += validate(spec, self.registry)
+        return spec, problems
+
+    @staticmethod
+    def graph_files(path: str | Path) -> list[str]:
+        """The graph file ``path`` and the files it includes (each once, the includes sorted):
+        what a graph is made from, e.g. to fingerprint it. An unreadable graph gives ``[path]``
+        alone (loading it says why)."""
+        return graph_files(path)
 
     def load_text(self, text: str, name: str = "<graph>", **kw: Any) -> GraphSpec:
         spec = load_graph_text(text, self.registry, name=name, **kw)

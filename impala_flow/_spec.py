@@ -32,11 +32,13 @@ _BAD_ID_CHARS = re.compile(r"[\s./\[\]]|->")
 
 
 def closest(word: str, choices: Iterable[str], n: int = 1) -> str | None:
+    """The ``n`` choices closest to ``word`` (a misspelt name), joined by ', '; None if none is close."""
     m = difflib.get_close_matches(word, list(choices), n=n, cutoff=0.5)
     return ", ".join(m) if m else None
 
 
 def did_you_mean(hint: str | None, otherwise: str = "") -> str:
+    """`` (did you mean 'HINT'?)`` to end a one-line error, or ``otherwise`` without a hint."""
     return f" (did you mean '{hint}'?)" if hint else otherwise
 
 

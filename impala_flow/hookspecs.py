@@ -36,10 +36,20 @@ hookimpl = pluggy.HookimplMarker(PROJECT)
 
 @hookspec
 def impala_flow_register(registry: Registry) -> None:
-    """Register this plugin's components, message types and codecs on ``registry``.
+    """Register this plugin's components, message types, codecs and mission sources on ``registry``.
 
     Called once per plugin per run, with a registry that knows which plugin is calling,
     so names are prefixed and duplicates are reported with both plugins named.
+
+    Mission sources: a plugin that can make a mission recording (a simulator, a dataset
+    importer) offers it with ``registry.add_mission_source(name, make, help)``, where
+    ``make(session, scenario, path, *, seed=None, duration_s=None)`` writes the recording to
+    ``path`` and raises with a one-line message when it cannot. Other plugins (the sweep)
+    call it through ``session.registry.mission_sources[name]``, never through the plugin's
+    command line; the radar plugin offers ``simulate``, the same code as its ``impala-flow
+    simulate`` command, so both write the same bytes. (A registry method rather than a hook
+    of its own: the source is tagged with its plugin, a name offered twice is reported with
+    both plugins, and a plugin that fails to register leaves none behind.)
     """
 
 

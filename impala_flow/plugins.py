@@ -29,11 +29,11 @@ import pluggy
 from . import _builtin as _engine_io
 from . import hookspecs
 from ._extras import install_line, missing_module
-from ._registry import BrokenPlugin, NameConflictError, PluginInfo, Registry
+from ._registry import BrokenPlugin, MissionSource, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
 
-__all__ = ["hookimpl", "Registry", "make_plugin_manager", "load_registry", "DISABLE_ENV", "PluginManager",
-           "warn_broken", "add_commands"]
+__all__ = ["hookimpl", "Registry", "MissionSource", "NameConflictError", "make_plugin_manager", "load_registry",
+           "DISABLE_ENV", "PluginManager", "warn_broken", "add_commands"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 

@@ -22,7 +22,7 @@ __all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "EXIT_INTERRUPTED", "
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 #: built-in subcommand modules, in the order --help lists them
-COMMANDS = ("run", "validate", "plugins", "graph", "schema", "info", "replay", "export", "sweep")
+COMMANDS = ("run", "validate", "plugins", "graph", "schema", "info", "replay", "export")
 
 EPILOG = """\
 examples:

@@ -132,15 +132,17 @@ def describe_component(type_name: str, cls: type[Component]) -> dict[str, Any]:
 
 
 def describe_plugins(registry: Registry) -> dict[str, Any]:
-    """Every plugin of ``registry`` with its version, components and message types, and the
-    broken ones (``broken``: name, entry point, version, error, hint, and the missing library with
-    the line that installs it)."""
+    """Every plugin of ``registry`` with its version, components, message types and mission
+    sources (name, help), and the broken ones (``broken``: name, entry point, version, error, hint,
+    and the missing library with the line that installs it)."""
     plugins = []
     for info in sorted(registry.plugins.values(), key=lambda p: p.name):
         plugins.append({
             "name": info.name, "version": info.version, "module": info.module,
             "components": [describe_component(t, registry.components[t]) for t in info.components],
             "types": sorted(info.types),
+            "mission_sources": [{"name": m.name, "help": m.help} for m in sorted(
+                registry.mission_sources.values(), key=lambda m: m.name) if m.plugin == info.name],
         })
     broken = [{"name": b.name, "entry_point": b.target, "version": b.version, "error": b.error, "hint": b.hint,
                "missing": b.missing, "install": b.install}
@@ -230,6 +232,8 @@ def format_plugins(data: dict[str, Any]) -> str:
                    f"{n} component{'s' if n != 1 else ''}")
         if p["types"]:
             out.append("  message types: " + ", ".join(p["types"]))
+        for m in p.get("mission_sources", []):
+            out.append(f"  mission source: {m['name']}" + (f" ({m['help']})" if m["help"] else ""))
         for c in p["components"]:
             out += format_component(c)
             out.append("")

@@ -9,13 +9,13 @@ import stat
 from collections.abc import Callable
 from pathlib import Path
 
-from impala_flow import output_clash
+from impala_flow import Session, output_clash
 from impala_flow.cli import EXIT_FAILED, EXIT_USAGE, CommandError
 from impala_flow.cli.helpers import open_session, record_source
 
 from .sources import DATASET_SOURCES, DATASET_TOPICS, SIM_TOPICS, Simulator
 
-__all__ = ["add_commands"]
+__all__ = ["add_commands", "simulate_mission"]
 
 
 def _duration_s(text: str) -> float:
@@ -223,23 +223,42 @@ def _simulate(args: argparse.Namespace) -> int:
         inputs = []  # reported below, with the valid names
     out = check_output(args.output, inputs, args.overwrite)
     session = open_session()
-    params: dict = {"scenario": args.scenario}
-    if args.seed is not None:
-        params["seed"] = args.seed
-    if args.duration is not None:
-        params["duration_s"] = float(args.duration)
-    if args.epoch_utc is not None:
-        params["epoch_utc"] = args.epoch_utc
-    try:
-        sim = Simulator("sim", **params)
-        sim.start()  # loads and checks the scenario now, for a one-line usage error
-    except (FileNotFoundError, ValueError, KeyError) as e:
-        raise CommandError(f"scenario {args.scenario!r}: {e}", EXIT_USAGE) from None
+    sim = _simulator(args.scenario, args.seed, args.duration, args.epoch_utc)
     code = write_output(out, args.overwrite, lambda tmp: record_source(
         session, sim, tmp, SIM_TOPICS, args.compression, progress=False if args.no_progress else None))
     if code == 0:
         print(f"simulated:    {out} (recorded as the summary's .part file, renamed when complete)")
     return code
+
+
+def _simulator(scenario: str, seed: int | None = None, duration_s: float | None = None,
+               epoch_utc: str | None = None) -> Simulator:
+    """The simulator of ``scenario``, started (the scenario loaded and checked now, for a
+    one-line usage error, exit 2)."""
+    params: dict = {"scenario": scenario}
+    if seed is not None:
+        params["seed"] = seed
+    if duration_s is not None:
+        params["duration_s"] = float(duration_s)
+    if epoch_utc is not None:
+        params["epoch_utc"] = epoch_utc
+    try:
+        sim = Simulator("sim", **params)
+        sim.start()
+    except (FileNotFoundError, ValueError, KeyError) as e:
+        raise CommandError(f"scenario {scenario!r}: {e}", EXIT_USAGE) from None
+    return sim
+
+
+def simulate_mission(session: Session, scenario: str, path: str, *, seed: int | None = None,
+                     duration_s: float | None = None) -> None:
+    """The mission source ``simulate`` (``registry.mission_sources``): record ``scenario``
+    simulated with ``seed`` for ``duration_s`` into ``path``, the same code and so the same
+    bytes as ``impala-flow simulate SCENARIO -o PATH --seed N --duration Xs``. Raises
+    :class:`CommandError` (one line) when the scenario is bad or the recording fails."""
+    code = record_source(session, _simulator(scenario, seed, duration_s), path, SIM_TOPICS, "zstd", progress=False)
+    if code != 0:
+        raise CommandError(f"recording {path}: interrupted", code)
 
 
 def _dataset_error(e: BaseException) -> BaseException | None:

@@ -1,4 +1,5 @@
-"""Entry point of the radar plugin: radar sources, front-end components, CLI commands."""
+"""Entry point of the radar plugin: radar sources, front-end components, the ``simulate``
+mission source, CLI commands."""
 
 from __future__ import annotations
 
@@ -24,6 +25,15 @@ def impala_flow_register(registry: Any) -> None:
     registry.add_component(SpeckleFilter)
     registry.add_component(PeakExtractor)
     registry.add_component(FrontendReport)
+    registry.add_mission_source("simulate", _simulate_mission,
+                                help="simulate a scenario (name or YAML file) with a seed, for a duration")
+
+
+def _simulate_mission(session: Any, scenario: str, path: str, *, seed: int | None = None,
+                      duration_s: float | None = None) -> None:
+    from .commands import simulate_mission  # the command's own code: same bytes as `impala-flow simulate`
+
+    simulate_mission(session, scenario, path, seed=seed, duration_s=duration_s)
 
 
 @hookimpl

@@ -17,10 +17,10 @@ from typing import Any
 
 import pytest
 
-from impala_flow.sweep import load_sweep, run_sweep
-from impala_flow.sweep import spec as spec_module
-from impala_flow.sweep.folder import RECORD
-from impala_flow.sweep.spec import is_safe_id
+from impala_sweep import spec as spec_module
+from impala_sweep.folder import RECORD
+from impala_sweep.runner import run_sweep
+from impala_sweep.spec import is_safe_id, load_sweep
 
 from .conftest import GRAPH, read_rows, sweep_main
 
@@ -54,8 +54,8 @@ def test_ids_from_hostile_file_names_are_safe_and_unique(tmp_path: Path, write_s
         assert (tmp_path / "out" / "tasks" / i).resolve().parent == (tmp_path / "out" / "tasks").resolve()
     assert len({i.lower() for i in ids}) == len(ids)  # unique even on a case-insensitive file system
     # simulated missions: the scenario's name is made safe too (and told apart from a safe one)
-    from impala_flow.sweep import mission_file
-    from impala_flow.sweep.spec import Task
+    from impala_sweep.folder import mission_file
+    from impala_sweep.spec import Task
 
     for scenario in ("..", "a/../../b", "x y"):
         path = mission_file(tmp_path / "out", Task("t", f"sim:{scenario}", 1, None, ()))
@@ -281,7 +281,7 @@ def http_port() -> Iterator[int]:
 def test_a_scheduler_address_that_is_not_dask_is_one_line(http_port: int, missions: list[Path],
                                                            write_sweep: Callable[..., Path], tmp_path: Path,
                                                            capsys: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    from impala_flow.sweep import runner
+    from impala_sweep import runner
 
     monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 1.0)
     sweep = write_sweep(f"graph: {GRAPH}\nmissions: {{files: ['{missions[0]}']}}\nmetrics: {METRICS}\n")
@@ -321,7 +321,7 @@ def test_the_dask_log_is_bounded_and_counts_what_it_drops(tmp_path: Path, monkey
                                                           capfd: Any) -> None:
     import logging
 
-    from impala_flow.sweep import runner
+    from impala_sweep import runner
 
     path = tmp_path / "dask.log"
     with runner._dask_logs_to(path) as count:  # what run_sweep wraps the cluster's life in
@@ -352,7 +352,7 @@ def test_ctrl_c_while_the_cluster_starts_is_kept_and_workers_never_see_it() -> N
 
     import numpy as np  # noqa: F401  - its BLAS threads, which must not swallow the signal
 
-    from impala_flow.sweep import runner
+    from impala_sweep import runner
 
     with pytest.raises(KeyboardInterrupt), runner._children_ignore_sigint():
         child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])

@@ -15,7 +15,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from impala_flow.sweep import SweepContext, load_sweep, run_sweep, run_task
+from impala_sweep.runner import run_sweep
+from impala_sweep.spec import load_sweep
+from impala_sweep.task import SweepContext, run_task
 
 from .conftest import (
     DURATION_S,
@@ -206,7 +208,7 @@ metrics: [{", ".join(METRICS)}]
 
 
 def test_tasks_undo_dasks_malloc_trim_threshold_only_when_dask_set_it() -> None:
-    code = "from impala_flow.sweep.task import undo_dask_malloc_trim as u; print(u(), u())"
+    code = "from impala_sweep.task import undo_dask_malloc_trim as u; print(u(), u())"
     for value, done in (("65536", "True False"), ("1000000", "False False"), (None, "False False")):
         env = env_without_plugin_blocks()
         env.pop("MALLOC_TRIM_THRESHOLD_", None)

@@ -1,4 +1,4 @@
-"""The engine stays ignorant of Dask: importing impala-flow, its sweep package, building the
+"""The engine stays ignorant of Dask: importing impala-flow, the sweep plugin (all but its runner), building the
 command line and running a graph never import dask or distributed; only a sweep does."""
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ from .conftest import ROOT, env_without_plugin_blocks
 
 CODE = """
 import sys
-import impala_flow, impala_flow.sweep, impala_flow.cli._sweep
+import impala_flow, impala_sweep.spec, impala_sweep.check, impala_sweep.folder, impala_sweep.task, impala_sweep.results
+import impala_sweep.command, impala_sweep.plugin
 from impala_flow.cli import make_parser
 make_parser().parse_args(["sweep", "x.yaml", "-o", "out"])
 from impala_flow._session import Session

@@ -23,8 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from impala_flow import ComponentError, GraphError, Session, YamlError
+from impala_flow.cli import CommandError
+
 from .folder import remove_own
-from .spec import SweepError, Task
+from .spec import MISSION_SOURCE, SweepError, Task
 
 __all__ = ["SweepContext", "simulate_mission", "run_task", "one_line", "RUN_LOG", "RUN_SUMMARY"]
 
@@ -95,9 +98,10 @@ def _captured(log: Path) -> Iterator[io.TextIOBase]:
 
 
 def simulate_mission(scenario: str, seed: int | None, duration_s: float | None, path: str) -> dict[str, Any]:
-    """Simulate a scenario into ``path`` through the ``simulate`` command the radar plugin
-    installs, exactly as ``impala-flow simulate SCENARIO -o PATH --seed N --duration Xs`` does
-    (so the file is byte for byte the command's). A file already there is reused: several
+    """Make the mission of ``scenario`` into ``path`` through the mission source
+    :data:`~.spec.MISSION_SOURCE` an installed plugin offers (the radar plugin's simulator:
+    the same code as ``impala-flow simulate SCENARIO -o PATH --seed N --duration Xs``, so the
+    file is byte for byte the command's). A file already there is reused: several
     variants share a mission, and a rescheduled task finds it. Returns ``{"path", "error",
     "wall_s"}``; never raises for a simulation that fails (the tasks of that mission report it)."""
     t0 = time.perf_counter()
@@ -107,40 +111,22 @@ def simulate_mission(scenario: str, seed: int | None, duration_s: float | None, 
         return {"path": str(out), "error": None, "wall_s": 0.0}
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.{os.getpid()}-{threading.get_ident()}.part")  # renamed when complete
-    argv = ["simulate", scenario, "-o", str(tmp), "--no-progress"]
-    if seed is not None:
-        argv += ["--seed", str(seed)]
-    if duration_s is not None:
-        argv += ["--duration", f"{duration_s!r}s"]
     error = None
-    with _captured(out.with_suffix(".log")) as log:
+    with _captured(out.with_suffix(".log")):
         try:
-            code = _call_command(argv, log)
-            if code != 0:
-                error = f"impala-flow {' '.join(argv[:2])}: exit {code}"
+            session = Session()
+            source = session.registry.mission_sources.get(MISSION_SOURCE)
+            if source is None:
+                error = (f"simulating {scenario}: no installed plugin offers the mission source '{MISSION_SOURCE}' "
+                         f"(installed: {', '.join(sorted(session.registry.mission_sources)) or 'none'})")
             else:
+                source.make(session, scenario, str(tmp), seed=seed, duration_s=duration_s)
                 os.replace(tmp, out)
         except Exception as e:
-            error = f"simulating {scenario} (seed {seed}): {one_line(e)}"
+            error = f"simulating {scenario} (seed {seed}): {one_line(str(e) if isinstance(e, CommandError) else e)}"
         finally:
             tmp.unlink(missing_ok=True)
     return {"path": str(out), "error": error, "wall_s": time.perf_counter() - t0}
-
-
-def _call_command(argv: list[str], log: io.TextIOBase) -> int:
-    """Run an ``impala-flow`` subcommand in this process (plugin commands included)."""
-    from ..cli import CommandError, make_parser
-
-    parser = make_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as e:  # argparse printed why to the log
-        raise RuntimeError(f"impala-flow {argv[0]}: invalid arguments or command not installed "
-                           f"(exit {e.code}; is the plugin providing '{argv[0]}' installed?)") from None
-    try:
-        return int(args.func(args) or 0)
-    except CommandError as e:
-        raise RuntimeError(str(e)) from None
 
 
 def base_row(task: Task) -> dict[str, Any]:
@@ -167,11 +153,6 @@ def run_task(task: Task, ctx: SweepContext, mission: dict[str, Any] | None = Non
 
     The folder ``tasks/<id>/`` of the sweep is the graph's ``${out}``; it also gets
     :data:`RUN_SUMMARY` (the run summary as ``--summary-json`` writes it) and :data:`RUN_LOG`."""
-    from .._graph import GraphError
-    from .._session import Session
-    from .._summary import ComponentError
-    from .._yamlloc import YamlError
-
     t0 = time.perf_counter()
     undo_dask_malloc_trim()
     folder = ctx.task_dir(task)

@@ -1,38 +1,33 @@
 """Checks made on the client before anything is submitted, so a typo fails fast and located:
 the graph is valid, every ``component.param`` of the grid names a component of the graph
-and a parameter of its type, every metric names a component of the graph, and the
-``simulate`` command exists when missions are simulated."""
+and a parameter of its type, every metric names a component of the graph, and an installed
+plugin offers the ``simulate`` mission source when missions are simulated."""
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
 
-from .._build import validate
-from .._component import Param
-from .._graph import resolve_graph
-from .._paths import resolve_paths
-from .._registry import Registry
-from .._spec import GraphError, GraphSpec, closest, did_you_mean
-from .spec import SweepError, SweepSpec, format_value
+from impala_flow import GraphError, GraphSpec, Param, Session, closest, did_you_mean
+
+from .spec import MISSION_SOURCE, SweepError, SweepSpec, format_value
 
 __all__ = ["check_sweep"]
 
 
-def check_sweep(spec: SweepSpec, registry: Registry, out_dir: str | Path, pm: object | None = None) -> GraphSpec:
+def check_sweep(spec: SweepSpec, session: Session, out_dir: str | Path) -> GraphSpec:
     """Raise :class:`GraphError` (the graph itself) or :class:`SweepError` (the sweep file);
-    return the graph as the first task would get it, without overrides."""
+    return the graph as the first task would get it, without overrides. ``session`` gives the
+    installed plugins (their components and mission sources)."""
+    registry = session.registry
     # nothing here expands the sweep: the checks read its axes (a typo in a huge grid answers at once)
     files = spec.files
     # a simulated mission does not exist yet: a stand-in path, whose "cannot open" is not a problem
     stand_in = str(Path(out_dir).resolve() / "missions" / ".not-yet-simulated.mcap")
     mission = files[0] if files else stand_in
     variables = {**spec.variables, "mission": mission, "out": str(Path(out_dir).resolve() / "tasks" / "check")}
-    graph, problems = resolve_graph(spec.graph, (), variables)
-    problems += resolve_paths(graph, registry)
-    problems += validate(graph, registry)
+    graph, problems = session.problems(spec.graph, (), variables)
     problems = [p for p in problems if stand_in not in p.message]
     if problems:
         raise GraphError(problems)
@@ -55,12 +50,11 @@ def check_sweep(spec: SweepSpec, registry: Registry, out_dir: str | Path, pm: ob
             raise SweepError(f"{spec.where(f'metric:{m}')}: metric {m}: no component '{comp}' in graph "
                              f"{spec.graph.name}" + did_you_mean(closest(comp, graph.components)))
     sims = [m[4:] for m, _, _ in spec.missions if m.startswith("sim:")]
-    if pm is not None and sims:
-        sub = argparse.ArgumentParser(add_help=False).add_subparsers()
-        pm.hook.impala_flow_add_commands(subparsers=sub)  # type: ignore[attr-defined]
-        if "simulate" not in sub.choices:
-            raise SweepError(f"{spec.where(f'scenario:{sims[0]}')}: simulated missions need the 'simulate' "
-                             "command, which no installed plugin provides (the radar plugin does)")
+    if sims and MISSION_SOURCE not in registry.mission_sources:
+        offered = ", ".join(sorted(registry.mission_sources)) or "none"
+        raise SweepError(f"{spec.where(f'scenario:{sims[0]}')}: simulated missions need the mission source "
+                         f"'{MISSION_SOURCE}', which no installed plugin offers (installed: {offered}; the radar "
+                         "plugin offers it)")
     return graph
 
 
@@ -80,7 +74,7 @@ def _type_problem(p: Param, value: Any) -> str | None:
     return f"expected {t.__name__}, got {type(value).__name__} {format_value(value)}"
 
 
-def _check_types(spec: SweepSpec, graph: GraphSpec, registry: Registry) -> None:
+def _check_types(spec: SweepSpec, graph: GraphSpec, registry: Any) -> None:
     """Every value a variant sets (each written once in the sweep file, so this is linear in
     the file, not in the product) against its parameter's type, on the client: the first
     wrong one located in the sweep file, with how many more there are."""

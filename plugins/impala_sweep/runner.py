@@ -13,7 +13,6 @@ imports Dask.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import logging
 import os
@@ -27,12 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .folder import prepare_folder
+from .folder import mission_file, prepare_folder
 from .results import STATUS_OK, Results
-from .spec import SweepError, SweepSpec, Task, clean_name
+from .spec import SweepError, SweepSpec, Task
 from .task import SweepContext, failed_row, one_line, run_task, simulate_mission
 
-__all__ = ["run_sweep", "SweepOutcome", "mission_file", "DASHBOARD", "DASK_LOG", "check_scheduler"]
+__all__ = ["run_sweep", "SweepOutcome", "DASHBOARD", "DASK_LOG", "check_scheduler"]
 
 #: where the local cluster's dashboard listens unless told (loopback: nothing outside this machine reaches it)
 DASHBOARD = "127.0.0.1:8787"
@@ -55,18 +54,6 @@ class SweepOutcome:
     dashboard: str | None = None
     #: warnings and errors Dask, the dashboard or asyncio logged (in DIR/dask.log)
     logged: int = 0
-
-
-def mission_file(out_dir: str | Path, task: Task) -> Path:
-    """Where a simulated mission of ``task`` is written: ``DIR/missions/<scenario>_s<seed>[_<d>s].mcap``
-    (the scenario's name in safe characters, as task ids are)."""
-    scenario = task.scenario or "mission"
-    name = clean_name(Path(scenario).stem)
-    if scenario != name:  # a scenario file (two of one name in two folders), or a name not safe as it is
-        name += "-" + hashlib.sha1(scenario.encode()).hexdigest()[:6]
-    parts = [name] + ([f"s{task.seed}"] if task.seed is not None else []) \
-        + ([f"{task.duration_s:g}s"] if task.duration_s is not None else [])
-    return Path(out_dir) / "missions" / ("_".join(parts) + ".mcap")
 
 
 def _free_port(host: str, port: int) -> bool:

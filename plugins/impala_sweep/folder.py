@@ -10,7 +10,7 @@ creates there (its output files, ``tasks/<id>/`` per task, its simulated mission
   previous sweep created is removed, nothing else; another folder: refused if any name the
   sweep writes is already there, so no file of the user's is ever overwritten);
 - an output folder equal to, inside or over a mission, the sweep file or the graph is refused
-  (:func:`impala_flow._paths.output_clash`);
+  (:func:`impala_flow.output_clash`);
 - deletions go through :func:`remove_own`: one child of the sweep's ``tasks/`` or
   ``missions/`` folder, named as the sweep names them, links not followed.
 """
@@ -24,10 +24,11 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from .._paths import output_clash
-from .spec import SweepError, SweepSpec, is_safe_id
+from impala_flow import Session, output_clash
 
-__all__ = ["RECORD", "OWN_FILES", "prepare_folder", "sweep_identity", "remove_own", "compare"]
+from .spec import SweepError, SweepSpec, Task, clean_name, is_safe_id
+
+__all__ = ["RECORD", "OWN_FILES", "prepare_folder", "sweep_identity", "remove_own", "compare", "mission_file"]
 
 RECORD = "sweep-record.json"
 #: files a sweep writes at the top of its folder (beside tasks/ and missions/)
@@ -48,13 +49,19 @@ def _sha256(path: str | Path) -> str | None:
 
 def _graph_files(graph: Path) -> list[str]:
     """The graph file and the files it includes (each once)."""
-    from .._graph import _read
+    return Session.graph_files(graph)
 
-    try:
-        _, chain = _read(graph.resolve(), [], (graph.resolve(),), {graph.resolve()}, [1 << 30])
-    except Exception:  # an unreadable graph: the check before says why
-        return [str(graph)]
-    return [str(graph)] + sorted(str(p) for _, p in chain)
+
+def mission_file(out_dir: str | Path, task: Task) -> Path:
+    """Where a simulated mission of ``task`` is written: ``DIR/missions/<scenario>_s<seed>[_<d>s].mcap``
+    (the scenario's name in safe characters, as task ids are)."""
+    scenario = task.scenario or "mission"
+    name = clean_name(Path(scenario).stem)
+    if scenario != name:  # a scenario file (two of one name in two folders), or a name not safe as it is
+        name += "-" + hashlib.sha1(scenario.encode()).hexdigest()[:6]
+    parts = [name] + ([f"s{task.seed}"] if task.seed is not None else []) \
+        + ([f"{task.duration_s:g}s"] if task.duration_s is not None else [])
+    return Path(out_dir) / "missions" / ("_".join(parts) + ".mcap")
 
 
 def _mission_id(path: str) -> dict[str, Any]:
@@ -118,8 +125,6 @@ def _read_record(out: Path) -> dict[str, Any] | None:
 
 
 def _write_record(out: Path, spec: SweepSpec, identity: dict[str, Any]) -> None:
-    from .runner import mission_file
-
     sims = sorted({mission_file(out, t).name for t in spec.tasks if t.simulated})
     rec = {"format": _FORMAT, "identity": identity, "tasks": [t.id for t in spec.tasks], "missions": sims}
     tmp = out / f".{RECORD}.{os.getpid()}.part"

@@ -6,9 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..sweep.spec import MAX_TASKS, MAX_TASKS_CEILING
-from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
-from .helpers import open_session
+from impala_flow.cli import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
+from impala_flow.cli.helpers import open_session
+
+from .spec import MAX_TASKS, MAX_TASKS_CEILING
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -85,9 +86,11 @@ def _check_args(args: argparse.Namespace) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .._spec import GraphError
-    from ..sweep import SweepError, check_sweep, load_sweep
-    from ..sweep.task import one_line
+    from impala_flow import GraphError
+
+    from .check import check_sweep
+    from .spec import SweepError, load_sweep
+    from .task import one_line
 
     out = _check_args(args)
     try:
@@ -96,9 +99,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(e), EXIT_USAGE) from None
     session = open_session()
     try:
-        check_sweep(spec, session.registry, out, session.pm)
+        check_sweep(spec, session, out)
         if args.scheduler:
-            from ..sweep.runner import parse_scheduler
+            from .runner import parse_scheduler
 
             parse_scheduler(args.scheduler)
     except (GraphError, SweepError) as e:
@@ -107,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         import distributed  # noqa: F401  - lazily: only a sweep needs Dask
     except ImportError as e:
         raise CommandError(f"sweeps need Dask distributed: pip install 'dask[distributed]' ({e})") from None
-    from ..sweep.runner import DASHBOARD, run_sweep
+    from .runner import DASHBOARD, run_sweep
 
     try:
         outcome = run_sweep(spec, out, scheduler=args.scheduler, scheduler_file=args.scheduler_file,

@@ -30,13 +30,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .._yamlloc import YamlError, load_yaml, location
+from impala_flow import YamlError, load_yaml, location
 
 __all__ = ["SweepSpec", "SweepError", "Task", "load_sweep", "format_value", "RESERVED_VARIABLES", "MAX_TASKS",
-           "MAX_TASKS_CEILING", "is_safe_id", "clean_name"]
+           "MAX_TASKS_CEILING", "is_safe_id", "clean_name", "MISSION_SOURCE"]
 
 _TOP = ("graph", "missions", "grid", "variants", "metrics", "repeats", "variables")
 _SIM = ("scenario", "duration_s", "seeds")
+#: the mission source (``registry.mission_sources``) that makes ``missions: simulate:`` missions
+MISSION_SOURCE = "simulate"
 #: variables the sweep sets for every task: the mission file and the task's output folder
 RESERVED_VARIABLES = ("mission", "out")
 _MAX_ID = 120
