@@ -104,8 +104,8 @@ from typing import Any, Protocol
 
 from ._clock import MissionClock
 from ._component import Component, Source
+from ._lifecycle import Lifecycle, check_source_time
 from ._network import Network
-from ._offline import check_source_time, collect_counters, event_order, stop_components
 from ._ports import InputPort, SyncGroup
 from ._sample import Sample
 from ._summary import ComponentError, RunSummary, log_skip
@@ -383,7 +383,8 @@ class RealTimeExecutor:
     # --- the run --------------------------------------------------------------------
     def run(self) -> RunSummary:
         net = self.net
-        order = event_order(net)  # as offline: ties by component id, never by YAML order
+        life = Lifecycle(net, self.summary)  # start, stop, errors, counters: shared with the offline executor
+        order = life.order  # as offline: ties by component id, never by YAML order
         summary = self.summary
         clock = self.clock
         now = clock.now_ns
@@ -426,20 +427,11 @@ class RealTimeExecutor:
         if offsets:
             net.metadata["clock_offsets_ns"] = dict(offsets)
 
-        started: list[Component] = []
-        start_failed: set[str] = set()
         workers: list[threading.Thread] = []
         timer_thread: threading.Thread | None = None
-        error: ComponentError | None = None
-        wall0 = time.perf_counter()
+        life.wall0 = time.perf_counter()
         try:
-            for c in order:
-                started.append(c)  # stop() runs even if start() raises: it may release what start() took
-                try:
-                    c.start()
-                except Exception as e:
-                    start_failed.add(c.name)
-                    raise ComponentError(c.name, "", None, "start", e) from e
+            life.start()
             first_ns: int | None = None
             for r in sources:  # non-live sources: pull their first sample to align them
                 if r.src.live:
@@ -487,26 +479,19 @@ class RealTimeExecutor:
             if self.stop_event.is_set():
                 summary.interrupted = True
             self._shutdown(sources, workers, timer_thread, [] if summary.interrupted else order)
-            error = self._error
             summary.mission_end_ns = now() if summary.mission_start_ns is not None else None
-            later = self._later + stop_components(started)
-            summary.wall_s = time.perf_counter() - wall0
             summary.events = (sum(r.emitted for r in sources) + sum(st.delivered for st in self._states)
                               + self._timer_ticks)
-            summary.processed = {c.name: states[c.name].count if c.name in states else 0 for c in order}
             skipped = {st.comp.name: st.skipped for st in self._states if st.skipped}
             skipped.update(self._source_skips)
-            summary.skipped = skipped
             extra: dict[str, dict[str, Any]] = {name: {"clock_offset_ns": off} for name, off in offsets.items()}
             for st in self._states:
                 if st.missed_ticks:
                     extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
             removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
-            later += collect_counters(summary, order, removed, extra,
-                                      reporting=[c for c in started if c.name not in start_failed])
-            if error is None and later:
-                error, later = later[0], later[1:]
-            summary.errors += [str(e) for e in later]
+            error = life.finish(self._error, earlier=self._later,
+                                processed={c.name: states[c.name].count if c.name in states else 0 for c in order},
+                                skipped=skipped, unconsumed=removed, extra=extra)
             for c in order:  # leave the ports as the offline executor expects them
                 for inp in c.inputs.values():
                     inp._cond = None
@@ -514,11 +499,7 @@ class RealTimeExecutor:
                     out._deliver = None
             if self.progress is not None and summary.mission_end_ns is not None:
                 self.progress(summary.mission_end_ns, summary.mission_start_ns)
-        if error is not None:
-            summary.error = str(error)
-            error.summary = summary  # type: ignore[attr-defined]
-            raise error
-        return summary
+        return life.result(error)
 
     def _wait(self, sources: list[_SourceRun], start_ns: int, endless: bool) -> None:
         """Block the calling thread until the run should end (``endless``: only on a stop)."""
