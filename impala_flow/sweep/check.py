@@ -10,12 +10,12 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .._build import validate
 from .._component import Param
-from .._graph import resolve_graph
-from .._paths import resolve_paths
+from .._load import read_graph as resolve_graph
 from .._registry import Registry
+from .._resolve import resolve_paths
 from .._spec import GraphError, GraphSpec, closest, did_you_mean
+from .._validate import validate
 from .spec import SweepError, SweepSpec, format_value
 
 __all__ = ["check_sweep"]

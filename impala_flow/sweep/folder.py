@@ -48,7 +48,7 @@ def _sha256(path: str | Path) -> str | None:
 
 def _graph_files(graph: Path) -> list[str]:
     """The graph file and the files it includes (each once)."""
-    from .._graph import _read
+    from .._load import _read
 
     try:
         _, chain = _read(graph.resolve(), [], (graph.resolve(),), {graph.resolve()}, [1 << 30])

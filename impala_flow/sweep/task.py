@@ -167,8 +167,8 @@ def run_task(task: Task, ctx: SweepContext, mission: dict[str, Any] | None = Non
 
     The folder ``tasks/<id>/`` of the sweep is the graph's ``${out}``; it also gets
     :data:`RUN_SUMMARY` (the run summary as ``--summary-json`` writes it) and :data:`RUN_LOG`."""
-    from .._graph import GraphError
     from .._session import Session
+    from .._spec import GraphError
     from .._summary import ComponentError
     from .._yamlloc import YamlError
 

@@ -9,8 +9,8 @@ import pytest
 
 from impala_flow import Component, Input, Output
 from impala_flow._build import to_dot
-from impala_flow._graph import GraphError
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .components import Boom, Counter, Scale
