@@ -68,7 +68,7 @@ from ._clock import ReplayClock
 from ._component import Component, Source
 from ._lifecycle import Lifecycle, check_source_time
 from ._network import Network
-from ._ports import InputPort, OutputTypeError
+from ._ports import InputPort, OutputPort, OutputTypeError
 from ._summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["OfflineExecutor", "run_offline", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]
@@ -127,6 +127,43 @@ def _timer_spins(network: Network) -> list[tuple[str, str, str]]:
     return out
 
 
+def _wire(order: list[Component], heap: list[tuple],
+          next_seq: Callable[[], int]) -> tuple[list[OutputPort], list[InputPort]]:
+    """Point every output at the event heap and rank every input; return (outputs, inputs).
+
+    An event's second key is ``2 * rank + phase`` (0: an input receives, 1: a component
+    fires); a delayed connection adds ``2 * len(order)``. ``emit()`` queues
+    ``(t, key, seq, _DELIVER, input, sample)`` itself (:class:`~impala_flow._ports.OutputPort`);
+    a lone reactive input without history takes the inlined fast path (``_fast``)."""
+    for i, c in enumerate(order):
+        for inp in c.inputs.values():
+            inp.rank = 2 * i
+    delayed_shift = 2 * len(order)
+    outputs = [out for c in order for out in c.outputs.values()]
+    for out in outputs:
+        out._heap, out._next = heap, next_seq
+        out._keyed = tuple((inp, inp.rank + delayed_shift if delayed else inp.rank) for inp, delayed in out._targets)
+    inputs = [inp for c in order for inp in c.inputs.values()]
+    for inp in inputs:
+        inp._fast = inp.group is None and inp.policy == "reactive" and inp._history_ns is None and inp._cond is None
+    return outputs, inputs
+
+
+def _unwire(heap: list[tuple], outputs: list[OutputPort], inputs: list[InputPort]) -> dict[InputPort, int]:
+    """Empty the heap and detach the ports (they may outlive this run, and be run again);
+    return the samples emitted but never delivered (interrupt, error), per input: lost, counted."""
+    in_flight: dict[InputPort, int] = {}
+    for ev in heap:
+        if ev[3] == _DELIVER:
+            in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
+    heap.clear()
+    for out in outputs:
+        out._heap, out._next, out._keyed = None, None, ()
+    for inp in inputs:
+        inp._fast = False
+    return in_flight
+
+
 def _live_source(c: Component) -> str | None:
     if c.live:
         return "is a live source: run this graph with the real-time executor (clock: {mode: realtime})"
@@ -152,7 +189,6 @@ class OfflineExecutor:
     def run(self) -> RunSummary:  # noqa: C901 - the event loop stays in one frame for speed
         life = Lifecycle(self.net, self.summary)  # start, stop, errors, counters: shared with the real-time executor
         order = life.order
-        n = len(order)
         rank = {c.name: i for i, c in enumerate(order)}
         heap: list[tuple] = []
         seq = itertools.count()
@@ -162,27 +198,12 @@ class OfflineExecutor:
         skipped = {c.name: 0 for c in order}
         timers_skipped: dict[Component, int] = {}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
-        # second key: 2 * rank + phase (0: an input receives, 1: a component fires)
-        for c in order:
-            for inp in c.inputs.values():
-                inp.rank = 2 * rank[c.name]
-        delayed_shift = 2 * n
-
-        # emit() queues (t, key, seq, _DELIVER, input, sample) itself (ports.OutputPort)
         next_seq = seq.__next__
-        outputs = [out for c in order for out in c.outputs.values()]
-        for out in outputs:
-            out._heap, out._next = heap, next_seq
-            out._keyed = tuple((inp, inp.rank + delayed_shift if delayed else inp.rank)
-                               for inp, delayed in out._targets)
+        outputs, inputs = _wire(order, heap, next_seq)
         # every timer has exactly one event in the heap (re-queued when it fires): the events
         # other than timers are len(heap) - timers, and when a timer is popped the others
         # are len(heap) - (timers - 1)
         n_timers = sum(len(c.__timers__) for c in order)
-        inputs = [inp for c in order for inp in c.inputs.values()]
-        for inp in inputs:
-            inp._fast = (inp.group is None and inp.policy == "reactive" and inp._history_ns is None
-                         and inp._cond is None)
 
         # a source's clock offset (its clock vs the mission clock) is applied on the way in
         offsets = {c.name: int(getattr(c, "clock_offset_ns", 0) or 0) for c in order}
@@ -371,15 +392,7 @@ class OfflineExecutor:
         finally:
             summary.events = events
             summary.mission_end_ns = cur_t
-            in_flight: dict[InputPort, int] = {}
-            for ev in heap:  # samples emitted but never delivered (interrupt, error): lost, counted
-                if ev[3] == _DELIVER:
-                    in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
-            heap.clear()
-            for out in outputs:  # the ports may outlive this run (and be run again)
-                out._heap, out._next, out._keyed = None, None, ()
-            for inp in inputs:
-                inp._fast = False
+            in_flight = _unwire(heap, outputs, inputs)
             error = life.finish(error, processed={c.name: n for c, n in counts.items()},
                                 skipped={k: v for k, v in skipped.items() if v}, unconsumed=in_flight,
                                 extra={c.name: {"timer_firings_skipped": n} for c, n in timers_skipped.items()})
