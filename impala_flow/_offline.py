@@ -46,7 +46,8 @@ bounds so that no period and no mission can keep the executor spinning:
   only the event queue, so it is deterministic; a run whose timers never idle that long
   is unchanged by it.
 
-Failures: the first error is raised, with the summary attached (``error.summary``, the
+Failures (the lifecycle both executors share, :mod:`impala_flow._lifecycle`; this module keeps
+only the event loop): the first error is raised, with the summary attached (``error.summary``, the
 events processed so far included); ``stop()`` runs for every component whose ``start()``
 was called, even one whose ``start()`` raised (so it can release what it took);
 ``summary()`` only for those whose ``start()`` returned. A ``stop()`` or ``summary()`` that

@@ -77,6 +77,8 @@ raises. Then, in this order:
    :class:`~impala_flow._summary.ComponentError` is raised if a component failed, with
    the summary attached as ``error.summary``. It is the first failure; later ones (another
    component, a ``stop()`` or ``summary()`` that raised) are lines of ``summary.errors``.
+   Steps 4 and 5 (and starting the components in graph order) are the lifecycle both
+   executors share (:mod:`impala_flow._lifecycle`).
 
 Equal timestamps: samples are delivered as they come; the executor cannot wait for a
 sample that may never arrive, so the offline equal-timestamp rule (see

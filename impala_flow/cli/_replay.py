@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .._load import read_graph
+from .._session import Session
 from .._spec import GraphError
 from .._summary import RunSummary
 from .._yamlloc import YamlError
@@ -41,9 +41,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
-    """Ids of the io.Replayer components of the graph, its includes resolved."""
+    """Ids of the io.Replayer components of the graph, its includes resolved (the *load*
+    stage only: the graph is validated once the recording is bound to them)."""
     try:
-        spec, _ = read_graph(graph_path, variables=variables)
+        spec, _ = Session.read(graph_path, variables=variables)
     except (GraphError, YamlError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
     return [c.id for c in spec.components.values() if c.type == REPLAYER]
