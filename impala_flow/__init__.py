@@ -16,11 +16,8 @@ Every other module is private (its name starts with ``_``). The engine knows not
 radar: the radar chain lives in plugins registered through the ``impala_flow`` entry point group.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
 from ._clock import FakeClock, MissionClock, ReplayClock
 from ._component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
-from ._graph import GraphError
 from ._network import Connection, CycleError, Network
 from ._offline import OfflineExecutor, run_offline
 from ._paths import output_clash
@@ -28,8 +25,9 @@ from ._ports import EmptyInput, InputPort, OutOfHistory, OutputPort
 from ._realtime import RealTimeExecutor
 from ._sample import Sample
 from ._session import Session
-from ._spec import GraphSpec, closest, did_you_mean
+from ._spec import GraphError, GraphSpec, closest, did_you_mean
 from ._summary import ComponentError, RunSummary
+from ._version import __version__
 from ._yamlloc import YamlError, load_yaml, location
 
 #: the modules a plugin may import; every other module of the engine is private (its name
@@ -38,11 +36,6 @@ PUBLIC_MODULES = (
     "impala_flow", "impala_flow.msgs", "impala_flow.io", "impala_flow.plugins", "impala_flow.hookspecs",
     "impala_flow.cli", "impala_flow.cli.helpers", "impala_flow.testing",
 )
-
-try:
-    __version__ = version("impala-flow")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0"
 
 __all__ = [
     "Sample", "Component", "Source", "Input", "Output", "Param", "Periodic", "REQUIRED",

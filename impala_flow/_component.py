@@ -40,6 +40,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 from ._ports import DEFAULT_MAXBYTES, OVERFLOWS, POLICIES, InputPort, OutputPort, SyncGroup
+from ._spec import closest, did_you_mean
 
 __all__ = [
     "Component", "Source", "Input", "Output", "Param", "Periodic", "ParamError", "REQUIRED", "PATH_KINDS",
@@ -336,8 +337,6 @@ class Component:
         problems: dict[str, str] = {}
         for k in params:
             if k not in cls.__params__:
-                from ._graph import closest, did_you_mean
-
                 hint = closest(k, cls.__params__)
                 problems[k] = "unknown parameter" + did_you_mean(hint)
         for k, p in cls.__params__.items():

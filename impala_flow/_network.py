@@ -3,7 +3,7 @@
 Graph order (:meth:`Network.order`) is a topological order of the components over their
 non-delayed connections (ties broken by the order the components were added), computed
 with networkx; it is the order of listings (``impala-flow graph``). Both executors run
-in :func:`impala_flow._offline.event_order` (start, stop, and the second key of the
+in :func:`impala_flow._lifecycle.event_order` (start, stop, and the second key of the
 deterministic event order): the same topological order with ties broken by component
 id, so the order of a YAML file never changes a run's results.
 """

@@ -46,7 +46,8 @@ bounds so that no period and no mission can keep the executor spinning:
   only the event queue, so it is deterministic; a run whose timers never idle that long
   is unchanged by it.
 
-Failures: the first error is raised, with the summary attached (``error.summary``, the
+Failures (the lifecycle both executors share, :mod:`impala_flow._lifecycle`; this module keeps
+only the event loop): the first error is raised, with the summary attached (``error.summary``, the
 events processed so far included); ``stop()`` runs for every component whose ``start()``
 was called, even one whose ``start()`` raised (so it can release what it took);
 ``summary()`` only for those whose ``start()`` returned. A ``stop()`` or ``summary()`` that
@@ -64,20 +65,18 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import networkx as nx
-
 from ._clock import ReplayClock
 from ._component import Component, Source
+from ._lifecycle import Lifecycle, check_source_time
 from ._network import Network
-from ._ports import InputPort, OutputTypeError
+from ._ports import InputPort, OutputPort, OutputTypeError
 from ._summary import ComponentError, RunSummary, log_skip
 
-__all__ = ["OfflineExecutor", "run_offline", "stop_components", "collect_counters", "event_order",
-           "check_source_time", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]
+__all__ = ["OfflineExecutor", "run_offline", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]
 
 _SRC, _DELIVER, _TIMER, _TRIG = 0, 1, 2, 3
 _BEFORE_ALL = -(1 << 63) - 1  # earlier than any int64 sample time
-_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1
+_INT64_MIN, _INT64_MAX = -(1 << 63), (1 << 63) - 1  # as impala_flow._lifecycle's, module globals of the hot loop
 
 ProgressFn = Callable[[int, int | None], None]
 
@@ -129,21 +128,47 @@ def _timer_spins(network: Network) -> list[tuple[str, str, str]]:
     return out
 
 
-def event_order(network: Network) -> list[Component]:
-    """Topological order over the non-delayed connections, ties broken by component id:
-    the same graph gives the same order whatever the order of its YAML file
-    (``CycleError`` from :meth:`Network.order` for a cycle without a delay)."""
-    network.order()  # raises CycleError, naming the cycle
-    g = network.digraph(include_delayed=False)
-    return [network.components[n] for n in nx.lexicographical_topological_sort(g, key=str)]
+def _wire(order: list[Component], heap: list[tuple],
+          next_seq: Callable[[], int]) -> tuple[list[OutputPort], list[InputPort]]:
+    """Point every output at the event heap and rank every input; return (outputs, inputs).
+
+    An event's second key is ``2 * rank + phase`` (0: an input receives, 1: a component
+    fires); a delayed connection adds ``2 * len(order)``. ``emit()`` queues
+    ``(t, key, seq, _DELIVER, input, sample)`` itself (:class:`~impala_flow._ports.OutputPort`);
+    a lone reactive input without history takes the inlined fast path (``_fast``)."""
+    for i, c in enumerate(order):
+        for inp in c.inputs.values():
+            inp.rank = 2 * i
+    delayed_shift = 2 * len(order)
+    outputs = [out for c in order for out in c.outputs.values()]
+    for out in outputs:
+        out._heap, out._next = heap, next_seq
+        out._keyed = tuple((inp, inp.rank + delayed_shift if delayed else inp.rank) for inp, delayed in out._targets)
+    inputs = [inp for c in order for inp in c.inputs.values()]
+    for inp in inputs:
+        inp._fast = inp.group is None and inp.policy == "reactive" and inp._history_ns is None and inp._cond is None
+    return outputs, inputs
 
 
-def check_source_time(name: str, port: str, t: int) -> None:
-    """Refuse a timestamp outside int64 (MCAP ``log_time``, numpy ``int64``) at its source."""
-    if not _INT64_MIN <= t <= _INT64_MAX:
-        raise ComponentError(name, port, None, "generate", OverflowError(
-            f"yielded t={t} ns on '{port}', outside the int64 range of timestamps "
-            f"[{_INT64_MIN}, {_INT64_MAX}] ns"))
+def _unwire(heap: list[tuple], outputs: list[OutputPort], inputs: list[InputPort]) -> dict[InputPort, int]:
+    """Empty the heap and detach the ports (they may outlive this run, and be run again);
+    return the samples emitted but never delivered (interrupt, error), per input: lost, counted."""
+    in_flight: dict[InputPort, int] = {}
+    for ev in heap:
+        if ev[3] == _DELIVER:
+            in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
+    heap.clear()
+    for out in outputs:
+        out._heap, out._next, out._keyed = None, None, ()
+    for inp in inputs:
+        inp._fast = False
+    return in_flight
+
+
+def _live_source(c: Component) -> str | None:
+    if c.live:
+        return "is a live source: run this graph with the real-time executor (clock: {mode: realtime})"
+    return None
 
 
 class OfflineExecutor:
@@ -163,8 +188,8 @@ class OfflineExecutor:
 
     # ------------------------------------------------------------------------------
     def run(self) -> RunSummary:  # noqa: C901 - the event loop stays in one frame for speed
-        order = event_order(self.net)
-        n = len(order)
+        life = Lifecycle(self.net, self.summary)  # start, stop, errors, counters: shared with the real-time executor
+        order = life.order
         rank = {c.name: i for i, c in enumerate(order)}
         heap: list[tuple] = []
         seq = itertools.count()
@@ -174,33 +199,16 @@ class OfflineExecutor:
         skipped = {c.name: 0 for c in order}
         timers_skipped: dict[Component, int] = {}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
-        # second key: 2 * rank + phase (0: an input receives, 1: a component fires)
-        for c in order:
-            for inp in c.inputs.values():
-                inp.rank = 2 * rank[c.name]
-        delayed_shift = 2 * n
-
-        # emit() queues (t, key, seq, _DELIVER, input, sample) itself (ports.OutputPort)
         next_seq = seq.__next__
-        outputs = [out for c in order for out in c.outputs.values()]
-        for out in outputs:
-            out._heap, out._next = heap, next_seq
-            out._keyed = tuple((inp, inp.rank + delayed_shift if delayed else inp.rank)
-                               for inp, delayed in out._targets)
+        outputs, inputs = _wire(order, heap, next_seq)
         # every timer has exactly one event in the heap (re-queued when it fires): the events
         # other than timers are len(heap) - timers, and when a timer is popped the others
         # are len(heap) - (timers - 1)
         n_timers = sum(len(c.__timers__) for c in order)
-        inputs = [inp for c in order for inp in c.inputs.values()]
-        for inp in inputs:
-            inp._fast = (inp.group is None and inp.policy == "reactive" and inp._history_ns is None
-                         and inp._cond is None)
 
         # a source's clock offset (its clock vs the mission clock) is applied on the way in
         offsets = {c.name: int(getattr(c, "clock_offset_ns", 0) or 0) for c in order}
-        started: list[Component] = []
-        start_failed: set[str] = set()
-        wall0 = time.perf_counter()
+        wall0 = life.wall0
         error: ComponentError | None = None
         cur_t: int | None = None  # the time of the last event (None before the first)
         now_t = _BEFORE_ALL  # the same, as an int for the hot loop
@@ -243,16 +251,7 @@ class OfflineExecutor:
             spins = _timer_spins(self.net)  # before any start(): nothing to undo
             if spins:
                 raise ComponentError(spins[0][0], "", None, "start", ValueError(spins[0][2]))
-            for c in order:
-                if c.live:
-                    raise ComponentError(c.name, "", None, "start", RuntimeError(
-                        "is a live source: run this graph with the real-time executor (clock: {mode: realtime})"))
-                started.append(c)  # stop() runs even if start() raises: it may release what start() took
-                try:
-                    c.start()
-                except Exception as e:
-                    start_failed.add(c.name)
-                    raise ComponentError(c.name, "", None, "start", e) from e
+            life.start(refuse=_live_source)
             for c in order:
                 if isinstance(c, Source):
                     src_state[c] = [iter(c.generate()), offsets[c.name], 2 * rank[c.name] + 1, None]
@@ -394,91 +393,13 @@ class OfflineExecutor:
         finally:
             summary.events = events
             summary.mission_end_ns = cur_t
-            in_flight: dict[InputPort, int] = {}
-            for ev in heap:  # samples emitted but never delivered (interrupt, error): lost, counted
-                if ev[3] == _DELIVER:
-                    in_flight[ev[4]] = in_flight.get(ev[4], 0) + 1
-            heap.clear()
-            for out in outputs:  # the ports may outlive this run (and be run again)
-                out._heap, out._next, out._keyed = None, None, ()
-            for inp in inputs:
-                inp._fast = False
-            later = stop_components(started)
-            summary.wall_s = time.perf_counter() - wall0
-            summary.processed = {c.name: n for c, n in counts.items()}
-            summary.skipped = {k: v for k, v in skipped.items() if v}
-            later += collect_counters(summary, order, in_flight,
-                                      extra={c.name: {"timer_firings_skipped": n} for c, n in timers_skipped.items()},
-                                      reporting=[c for c in started if c.name not in start_failed])
-            if error is None and later:
-                error, later = later[0], later[1:]
-            summary.errors += [str(e) for e in later]
+            in_flight = _unwire(heap, outputs, inputs)
+            error = life.finish(error, processed={c.name: n for c, n in counts.items()},
+                                skipped={k: v for k, v in skipped.items() if v}, unconsumed=in_flight,
+                                extra={c.name: {"timer_firings_skipped": n} for c, n in timers_skipped.items()})
             if self.progress is not None and cur_t is not None:
                 self.progress(cur_t, summary.mission_start_ns)
-        if error is not None:
-            summary.error = str(error)
-            error.summary = summary  # type: ignore[attr-defined]
-            raise error
-        return summary
-
-
-def collect_counters(summary: RunSummary, order: list[Component],
-                     unconsumed: dict[InputPort, int] | None = None,
-                     extra: dict[str, dict[str, Any]] | None = None,
-                     reporting: list[Component] | None = None) -> list[ComponentError]:
-    """Fill ``summary`` with every input's counters and every output's count at the end of a
-    run (both executors): samples left in sync groups are ``unmatched``, samples left in a
-    reactive FIFO ``unconsumed``, plus those an executor already removed or never delivered
-    (``unconsumed``: counted as ``unmatched`` for sync-group members, ``unconsumed``
-    otherwise); ``extra`` adds executor figures to the components' own ``summary()``.
-
-    ``summary()`` is asked of the ``reporting`` components only (default: all; the
-    executors pass those whose ``start()`` returned). One that raises is returned as a
-    :class:`ComponentError` (phase ``summary``), never raised: the caller reports it."""
-    lost = unconsumed or {}
-    failures: list[ComponentError] = []
-    asked = None if reporting is None else {c.name for c in reporting}
-    for c in order:
-        for g in c.sync_groups.values():
-            for m in g.members:
-                m.stats.unmatched += m.leftover() + (m._current is not None) + lost.get(m, 0)
-                m._fifo.clear()
-                m._current = None
-        for name, p in c.inputs.items():
-            if p.group is None:
-                if p.policy == "reactive":
-                    p.stats.unconsumed = len(p._fifo) + lost.get(p, 0)
-                else:
-                    p.stats.unconsumed += lost.get(p, 0)
-            summary.inputs[f"{c.name}.{name}"] = vars(p.stats).copy()
-        for name, o in c.outputs.items():
-            summary.emitted[f"{c.name}.{name}"] = o.count
-        own: dict[str, Any] = {}
-        if asked is None or c.name in asked:
-            try:
-                own = dict(c.summary() or {})
-            except Exception as e:
-                err = ComponentError(c.name, "", None, "summary", e)
-                err.__cause__ = e
-                failures.append(err)
-        figures = {**own, **(extra or {}).get(c.name, {})}
-        if figures:
-            summary.extra[c.name] = figures
-    return failures
-
-
-def stop_components(started: list[Component]) -> list[ComponentError]:
-    """Call ``stop()`` of every started component, in order, even when some raise; return
-    every failure (each naming its component), in order. Both executors end a run with it."""
-    failures: list[ComponentError] = []
-    for c in started:
-        try:
-            c.stop()
-        except Exception as e:
-            err = ComponentError(c.name, "", None, "stop", e)
-            err.__cause__ = e
-            failures.append(err)
-    return failures
+        return life.result(error)
 
 
 def run_offline(network: Network, speed: float | None = None, **kw: Any) -> RunSummary:

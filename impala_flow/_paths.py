@@ -1,10 +1,11 @@
-"""Files a graph reads and writes: relative paths resolved, clobbering refused at validation.
+"""Files a graph reads and writes (:func:`graph_files`), clobbering refused at validation.
 
 A component declares its path parameters with ``Param(str, path=KIND)``
 (:data:`~impala_flow._component.PATH_KINDS`); ``record.path`` is a file written. A relative
 path is resolved against the folder of the graph file it is written in (like
 ``include:``), unless it starts with a variable given on the command line or comes from
-``--set``: it then stays relative to the working directory where the user typed it.
+``--set``: it then stays relative to the working directory where the user typed it (that is
+the *resolve* stage, :mod:`impala_flow._resolve`; this module knows the files of a resolved spec).
 
 Validation refuses, each located: an output that is the same file (links resolved) as an
 input a component reads (recording over the mission being replayed destroys it), lies
@@ -26,39 +27,13 @@ from ._registry import Registry
 from ._spec import GraphSpec, Problem
 from ._yamlloc import Loc
 
-__all__ = ["resolve_paths", "check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash",
+__all__ = ["check_paths", "GraphFile", "graph_files", "looks_like_file", "output_clash",
            "not_writable"]
 
 
 def looks_like_file(value: str) -> bool:
     """A ``read_or_name`` value names a file when it has a folder part or a suffix."""
     return "/" in value or os.sep in value or PurePath(value).suffix != ""
-
-
-def _resolve(value: str, base: str) -> str:
-    value = os.path.expanduser(value)
-    if os.path.isabs(value) or not base:
-        return value
-    return os.path.normpath(os.path.join(base, value))
-
-
-def resolve_paths(spec: GraphSpec, registry: Registry) -> list[Problem]:
-    """Resolve, in place, the relative path parameters of ``spec`` and ``record.path``."""
-    default_base = str(PurePath(spec.file).parent)
-    for c in spec.components.values():
-        cls = registry.components.get(c.type)
-        if cls is None:
-            continue  # validate() reports the unknown type
-        for k, p in cls.__params__.items():
-            value = c.params.get(k)
-            if getattr(p, "path", None) is None or not isinstance(value, str) or not value:
-                continue
-            if p.path == "read_or_name" and not looks_like_file(value):
-                continue
-            c.params[k] = _resolve(value, c.param_bases.get(k, default_base))
-    if spec.record is not None and isinstance(spec.record.get("path"), str) and spec.record["path"]:
-        spec.record["path"] = _resolve(spec.record["path"], spec.record_base)
-    return []
 
 
 @dataclass(frozen=True)

@@ -78,7 +78,7 @@ from dataclasses import dataclass, field
 from heapq import heappush as _heappush
 from itertools import islice
 from operator import attrgetter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -86,8 +86,11 @@ from ._sample import Sample
 from ._summary import ComponentError
 from .msgs import freezer_for, wrap_angle
 
-if TYPE_CHECKING:
-    from ._component import Component, Input, Output
+# a port's owner and declaration are a Component and its Input/Output (impala_flow._component):
+# named, not imported, even for type checking: _component imports this module (no import circle)
+Owner = Any
+InputDecl = Any
+OutputDecl = Any
 
 __all__ = ["InputPort", "OutputPort", "SyncGroup", "PortStats", "OutOfHistory", "EmptyInput", "OutputTypeError",
            "DEFAULT_MAXBYTES", "data_nbytes", "sample_nbytes"]
@@ -245,7 +248,7 @@ class InputPort:
         "trigger_name", "connected", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb", "validate",
     )
 
-    def __init__(self, owner: Component, name: str, decl: Input) -> None:
+    def __init__(self, owner: Owner, name: str, decl: InputDecl) -> None:
         self.name = name
         self.owner = owner
         self.decl = decl
@@ -584,7 +587,7 @@ class OutputPort:
     __slots__ = ("name", "owner", "decl", "origin", "_seq", "_targets", "_deliver", "_typed", "_ok",
                  "_heap", "_next", "_keyed", "_cls", "_frz")
 
-    def __init__(self, owner: Component, name: str, decl: Output) -> None:
+    def __init__(self, owner: Owner, name: str, decl: OutputDecl) -> None:
         self.name = name
         self.owner = owner
         self.decl = decl

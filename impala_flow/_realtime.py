@@ -77,6 +77,8 @@ raises. Then, in this order:
    :class:`~impala_flow._summary.ComponentError` is raised if a component failed, with
    the summary attached as ``error.summary``. It is the first failure; later ones (another
    component, a ``stop()`` or ``summary()`` that raised) are lines of ``summary.errors``.
+   Steps 4 and 5 (and starting the components in graph order) are the lifecycle both
+   executors share (:mod:`impala_flow._lifecycle`).
 
 Equal timestamps: samples are delivered as they come; the executor cannot wait for a
 sample that may never arrive, so the offline equal-timestamp rule (see
@@ -104,15 +106,15 @@ from typing import Any, Protocol
 
 from ._clock import MissionClock
 from ._component import Component, Source
+from ._lifecycle import Lifecycle, check_source_time
 from ._network import Network
-from ._offline import check_source_time, collect_counters, event_order, stop_components
 from ._ports import InputPort, SyncGroup
 from ._sample import Sample
 from ._summary import ComponentError, RunSummary, log_skip
 
 __all__ = ["RealTimeExecutor", "run_realtime", "BATCH"]
 
-log = logging.getLogger("impala_flow._realtime")
+log = logging.getLogger("impala_flow.runtime")  # the name logs have always used
 
 ProgressFn = Callable[[int, int | None], None]
 
@@ -382,16 +384,47 @@ class RealTimeExecutor:
 
     # --- the run --------------------------------------------------------------------
     def run(self) -> RunSummary:
+        """Start the components (in graph order), the workers, the timer thread and one
+        thread per source; wait for the end (sources done and nothing scheduled, a stop, an
+        error); shut down, flush, stop; return the summary or raise the first error."""
         net = self.net
-        order = event_order(net)  # as offline: ties by component id, never by YAML order
+        life = Lifecycle(net, self.summary)  # start, stop, errors, counters: shared with the offline executor
+        order = life.order  # as offline: ties by component id, never by YAML order
         summary = self.summary
-        clock = self.clock
-        now = clock.now_ns
-        skip = {name for name, pol in net.on_error.items() if pol == "skip"}
+        states = self._wire(order)
+        sources = [_SourceRun(c, int(getattr(c, "clock_offset_ns", 0) or 0)) for c in order if isinstance(c, Source)]
+        offsets = {r.src.name: r.offset for r in sources if r.offset}
+        if offsets:
+            net.metadata["clock_offsets_ns"] = dict(offsets)
+        workers: list[threading.Thread] = []
+        timers: list[threading.Thread] = []  # the timer thread, when a component has timers
+        life.wall0 = time.perf_counter()
+        try:
+            life.start()
+            first_ns = self._prime(sources)
+            self._launch(order, states, sources, first_ns, workers, timers)
+            self._wait(sources, summary.mission_start_ns or 0, endless=not sources and bool(timers))
+        except ComponentError as e:
+            self._fail(e)
+        except KeyboardInterrupt:
+            summary.interrupted = True
+        finally:
+            if self.stop_event.is_set():
+                summary.interrupted = True
+            self._shutdown(sources, workers, timers[0] if timers else None, [] if summary.interrupted else order)
+            error = self._finish(life, states, sources, offsets)
+            self._unwire(order)
+            if self.progress is not None and summary.mission_end_ns is not None:
+                self.progress(summary.mission_end_ns, summary.mission_start_ns)
+        return life.result(error)
 
+    def _wire(self, order: list[Component]) -> dict[str, _State]:
+        """A mailbox (:class:`_State`) per component that can be triggered, every output
+        delivering through it, every component's ``now_ns()`` on the mission clock."""
+        now = self.clock.now_ns
+        skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
         states: dict[str, _State] = {}
         route: dict[InputPort, tuple[_State, tuple[int, Any, int]]] = {}
-        timers: list[tuple[_State, str, int]] = []
         for c in order:
             c._clock_ns = now
             if c.inputs or c.__timers__:
@@ -420,105 +453,81 @@ class RealTimeExecutor:
         for c in order:
             for out in c.outputs.values():
                 out._deliver = deliver
+        return states
 
-        sources = [_SourceRun(c, int(getattr(c, "clock_offset_ns", 0) or 0)) for c in order if isinstance(c, Source)]
-        offsets = {r.src.name: r.offset for r in sources if r.offset}
-        if offsets:
-            net.metadata["clock_offsets_ns"] = dict(offsets)
+    @staticmethod
+    def _unwire(order: list[Component]) -> None:
+        """Leave the ports as the offline executor expects them."""
+        for c in order:
+            for inp in c.inputs.values():
+                inp._cond = None
+            for out in c.outputs.values():
+                out._deliver = None
 
-        started: list[Component] = []
-        start_failed: set[str] = set()
-        workers: list[threading.Thread] = []
-        timer_thread: threading.Thread | None = None
-        error: ComponentError | None = None
-        wall0 = time.perf_counter()
-        try:
-            for c in order:
-                started.append(c)  # stop() runs even if start() raises: it may release what start() took
-                try:
-                    c.start()
-                except Exception as e:
-                    start_failed.add(c.name)
-                    raise ComponentError(c.name, "", None, "start", e) from e
-            first_ns: int | None = None
-            for r in sources:  # non-live sources: pull their first sample to align them
-                if r.src.live:
-                    continue
-                try:
-                    r.gen = iter(r.src.generate())
-                    r.first = next(r.gen, None)
-                except Exception as e:
-                    raise ComponentError(r.src.name, "generate", None, "generate", e) from e
-                if r.first is None:
-                    r.done = True
-                    close = getattr(r.gen, "close", None)
-                    if close is not None:
-                        close()
-                else:
-                    t = int(r.first[0])
-                    first_ns = t if first_ns is None else min(first_ns, t)
-            nworkers = self.workers or max(1, len(self._states))
-            for i in range(nworkers):
-                th = threading.Thread(target=self._worker, name=f"impala-worker-{i}", daemon=True)
-                th.start()
-                workers.append(th)
-            start_ns = now()
-            summary.mission_start_ns = start_ns
-            for c in order:
-                st = states.get(c.name)
-                if st is not None:
-                    timers += [(st, name, tm.period_ns(c)) for name, tm in c.__timers__.items()]
-            if timers:
-                timer_thread = threading.Thread(target=self._timer_loop, args=(timers,), name="impala-timers",
-                                                daemon=True)
-                timer_thread.start()
-            for r in sources:
-                if r.done:
-                    continue
-                r.thread = threading.Thread(target=self._source_loop, args=(r, start_ns, first_ns),
-                                            name=f"impala-source-{r.src.name}", daemon=True)
-                r.thread.start()
-            self._wait(sources, start_ns, endless=not sources and bool(timers))
-        except ComponentError as e:
-            self._fail(e)
-        except KeyboardInterrupt:
-            summary.interrupted = True
-        finally:
-            if self.stop_event.is_set():
-                summary.interrupted = True
-            self._shutdown(sources, workers, timer_thread, [] if summary.interrupted else order)
-            error = self._error
-            summary.mission_end_ns = now() if summary.mission_start_ns is not None else None
-            later = self._later + stop_components(started)
-            summary.wall_s = time.perf_counter() - wall0
-            summary.events = (sum(r.emitted for r in sources) + sum(st.delivered for st in self._states)
-                              + self._timer_ticks)
-            summary.processed = {c.name: states[c.name].count if c.name in states else 0 for c in order}
-            skipped = {st.comp.name: st.skipped for st in self._states if st.skipped}
-            skipped.update(self._source_skips)
-            summary.skipped = skipped
-            extra: dict[str, dict[str, Any]] = {name: {"clock_offset_ns": off} for name, off in offsets.items()}
-            for st in self._states:
-                if st.missed_ticks:
-                    extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
-            removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
-            later += collect_counters(summary, order, removed, extra,
-                                      reporting=[c for c in started if c.name not in start_failed])
-            if error is None and later:
-                error, later = later[0], later[1:]
-            summary.errors += [str(e) for e in later]
-            for c in order:  # leave the ports as the offline executor expects them
-                for inp in c.inputs.values():
-                    inp._cond = None
-                for out in c.outputs.values():
-                    out._deliver = None
-            if self.progress is not None and summary.mission_end_ns is not None:
-                self.progress(summary.mission_end_ns, summary.mission_start_ns)
-        if error is not None:
-            summary.error = str(error)
-            error.summary = summary  # type: ignore[attr-defined]
-            raise error
-        return summary
+    @staticmethod
+    def _prime(sources: list[_SourceRun]) -> int | None:
+        """Pull the first sample of every non-live source (to align them); return the
+        earliest time (None when none has one)."""
+        first_ns: int | None = None
+        for r in sources:
+            if r.src.live:
+                continue
+            try:
+                r.gen = iter(r.src.generate())
+                r.first = next(r.gen, None)
+            except Exception as e:
+                raise ComponentError(r.src.name, "generate", None, "generate", e) from e
+            if r.first is None:
+                r.done = True
+                close = getattr(r.gen, "close", None)
+                if close is not None:
+                    close()
+            else:
+                t = int(r.first[0])
+                first_ns = t if first_ns is None else min(first_ns, t)
+        return first_ns
+
+    def _launch(self, order: list[Component], states: dict[str, _State], sources: list[_SourceRun],
+                first_ns: int | None, workers: list[threading.Thread], timers: list[threading.Thread]) -> None:
+        """Start the worker pool, the mission clock (``summary.mission_start_ns``), the timer
+        thread and the source threads; ``workers`` and ``timers`` get the threads as they start."""
+        for i in range(self.workers or max(1, len(self._states))):
+            th = threading.Thread(target=self._worker, name=f"impala-worker-{i}", daemon=True)
+            th.start()
+            workers.append(th)
+        start_ns = self.clock.now_ns()
+        self.summary.mission_start_ns = start_ns
+        periodic = [(states[c.name], name, tm.period_ns(c)) for c in order if c.name in states
+                    for name, tm in c.__timers__.items()]
+        if periodic:
+            th = threading.Thread(target=self._timer_loop, args=(periodic,), name="impala-timers", daemon=True)
+            th.start()
+            timers.append(th)
+        for r in sources:
+            if r.done:
+                continue
+            r.thread = threading.Thread(target=self._source_loop, args=(r, start_ns, first_ns),
+                                        name=f"impala-source-{r.src.name}", daemon=True)
+            r.thread.start()
+
+    def _finish(self, life: Lifecycle, states: dict[str, _State], sources: list[_SourceRun],
+                offsets: dict[str, int]) -> ComponentError | None:
+        """The executor's figures (events, calls, skips, missed ticks, samples discarded at
+        stop) handed to the shared lifecycle; return the error to raise."""
+        summary = self.summary
+        summary.mission_end_ns = self.clock.now_ns() if summary.mission_start_ns is not None else None
+        summary.events = (sum(r.emitted for r in sources) + sum(st.delivered for st in self._states)
+                          + self._timer_ticks)
+        skipped = {st.comp.name: st.skipped for st in self._states if st.skipped}
+        skipped.update(self._source_skips)
+        extra: dict[str, dict[str, Any]] = {name: {"clock_offset_ns": off} for name, off in offsets.items()}
+        for st in self._states:
+            if st.missed_ticks:
+                extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
+        removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
+        return life.finish(self._error, earlier=self._later,
+                           processed={c.name: states[c.name].count if c.name in states else 0 for c in life.order},
+                           skipped=skipped, unconsumed=removed, extra=extra)
 
     def _wait(self, sources: list[_SourceRun], start_ns: int, endless: bool) -> None:
         """Block the calling thread until the run should end (``endless``: only on a stop)."""

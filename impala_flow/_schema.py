@@ -19,10 +19,10 @@ import json
 import math
 from typing import Any
 
-from . import __version__
 from ._component import Component, Param
 from ._registry import Registry
 from ._spec import MIN_SPEED
+from ._version import __version__
 
 __all__ = ["graph_schema", "CONNECTION_PATTERN", "VARIABLE_PATTERN"]
 

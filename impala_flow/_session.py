@@ -4,6 +4,14 @@
     spec = session.load("graphs/frontend.yaml", overrides=["pairer.pfa=1e-4"],
                         variables={"mission": "out/beynes.mcap"})
     summary = session.run(spec, speed="max")          # offline; SIGINT/SIGTERM stop cleanly
+
+:meth:`Session.load` runs the graph pipeline in order, each stage its own module:
+:meth:`~Session.read` (:mod:`impala_flow._load`: YAML -> spec) -> :meth:`~Session.resolve`
+(:mod:`impala_flow._resolve`: relative paths) -> :meth:`~Session.validate`
+(:mod:`impala_flow._validate`: against the installed plugins), then raises every problem at
+once; :meth:`~Session.build` (:mod:`impala_flow._build`) makes the network
+:meth:`~Session.run` hands to an executor. A caller that wants the problems rather than an
+error (a sweep checking its graph) calls the stages itself.
 """
 
 from __future__ import annotations
@@ -15,15 +23,16 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ._build import build, validate
+from ._build import build
 from ._clock import ReplayClock, parse_speed
-from ._graph import GraphSpec, graph_files, load_graph, load_graph_text, resolve_graph
+from ._load import graph_files, read_graph
 from ._network import Network
 from ._offline import OfflineExecutor
-from ._paths import resolve_paths
 from ._registry import Registry
-from ._spec import Problem
+from ._resolve import resolve_paths
+from ._spec import GraphError, GraphSpec, Problem, capped
 from ._summary import RunSummary
+from ._validate import validate
 from .plugins import load_registry, make_plugin_manager, warn_broken
 
 __all__ = ["Session", "stop_on_signals"]
@@ -60,8 +69,17 @@ class Session:
         self.stop_event = threading.Event()
 
     def load(self, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-             variables: dict[str, Any] | None = None) -> GraphSpec:
-        spec = load_graph(path, self.registry, overrides, variables)
+             variables: dict[str, Any] | None = None, text: str | None = None) -> GraphSpec:
+        """Read, resolve and validate a graph file (or ``text`` named ``path``); raise
+        :class:`GraphError` with every problem (at most 20 per file).
+
+        ``variables`` are the caller's (``--var``): they win over the files' and a relative
+        path starting with one of them stays relative to the working directory."""
+        spec, problems = self.read(path, overrides, variables, text)
+        problems += self.resolve(spec)
+        problems += self.validate(spec)
+        if problems:
+            raise GraphError(capped(problems))
         self.pm.hook.impala_flow_graph_loaded(graph=spec)
         return spec
 
@@ -72,7 +90,7 @@ class Session:
         the ones it expects (e.g. a mission file that does not exist yet) before raising
         ``GraphError(problems)``. A file that cannot be read at all still raises
         :class:`~impala_flow.GraphError`."""
-        spec, problems = resolve_graph(path, overrides, variables)
+        spec, problems = read_graph(path, overrides, variables)
         problems += resolve_paths(spec, self.registry)
         problems += validate(spec, self.registry)
         return spec, problems
@@ -85,11 +103,26 @@ class Session:
         return graph_files(path)
 
     def load_text(self, text: str, name: str = "<graph>", **kw: Any) -> GraphSpec:
-        spec = load_graph_text(text, self.registry, name=name, **kw)
-        self.pm.hook.impala_flow_graph_loaded(graph=spec)
-        return spec
+        """:meth:`load` of a graph given as text (``name`` locates its problems)."""
+        return self.load(name, text=text, **kw)
+
+    @staticmethod
+    def read(path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+             variables: dict[str, Any] | None = None, text: str | None = None) -> tuple[GraphSpec, list[Problem]]:
+        """Stage 1, *load*: the graph with its includes, variables and overrides applied, and
+        the problems found so far; a file that cannot be read at all raises :class:`GraphError`."""
+        return read_graph(path, overrides, variables, text)
+
+    def resolve(self, spec: GraphSpec) -> list[Problem]:
+        """Stage 2, *resolve*: the relative path parameters and ``record.path`` of ``spec``, in place."""
+        return resolve_paths(spec, self.registry)
+
+    def validate(self, spec: GraphSpec) -> list[Problem]:
+        """Stage 3, *validate*: every problem of a resolved ``spec`` against the installed plugins."""
+        return validate(spec, self.registry)
 
     def build(self, spec: GraphSpec) -> Network:
+        """Stage 4, *build*: the network of a validated ``spec``."""
         return build(spec, self.registry)
 
     def run(self, spec: GraphSpec | Network, speed: Any = None, mode: str | None = None,

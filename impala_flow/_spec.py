@@ -1,9 +1,9 @@
 """The graph spec model and its problems: the bottom layer of graph handling.
 
-:mod:`impala_flow._graph` reads YAML files into a :class:`GraphSpec`;
-:mod:`impala_flow._build` validates a spec against the installed plugins and builds the
-:class:`~impala_flow._network.Network` it describes. Both import this module, never each
-other's internals: ``spec`` <- ``build`` <- ``graph``.
+Every stage of the pipeline (:mod:`impala_flow._load` -> :mod:`impala_flow._resolve` ->
+:mod:`impala_flow._validate` -> :mod:`impala_flow._build`) reads or fills a
+:class:`GraphSpec` and reports :class:`Problem` s; this module also holds the did-you-mean
+helpers every error message uses. It imports no stage.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ._yamlloc import Loc
 
 __all__ = [
     "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "closest", "did_you_mean",
-    "CONNECTION", "component_id_problem", "checked_speed", "MIN_SPEED",
+    "CONNECTION", "component_id_problem", "checked_speed", "MIN_SPEED", "capped", "MAX_PROBLEMS_PER_FILE",
 ]
 
 #: slowest replay speed accepted (1 s of mission in 1 000 s)
@@ -86,6 +86,26 @@ class GraphError(ValueError):
         n = len(problems)
         head = str(problems[0]) if n == 1 else f"{n} problems in graph:\n" + "\n".join(f"  {p}" for p in problems)
         super().__init__(head)
+
+
+#: problems listed per file; the others are counted in one line
+MAX_PROBLEMS_PER_FILE = 20
+
+
+def capped(problems: list[Problem], limit: int = MAX_PROBLEMS_PER_FILE) -> list[Problem]:
+    """``problems`` with at most ``limit`` per file, then one line counting the rest of that
+    file's (a file full of errors is not reprinted line by line)."""
+    seen: dict[str, int] = {}
+    out: list[Problem] = []
+    for p in problems:
+        file = p.loc.file if p.loc is not None else ""
+        seen[file] = seen.get(file, 0) + 1
+        if seen[file] <= limit:
+            out.append(p)
+    for file, n in seen.items():
+        if n > limit:
+            out.append(Problem(Loc(file, 0, 0) if file else None, f"and {n - limit} more problems"))
+    return out
 
 
 @dataclass

@@ -24,6 +24,7 @@ from ._network import Network
 from ._offline import OfflineExecutor
 from ._sample import Sample
 from ._session import Session
+from ._spec import CONNECTION
 from ._summary import RunSummary
 from .hookspecs import hookimpl
 
@@ -84,9 +85,7 @@ class CollectingSink(Component):
 
 def connect(net: Network, spec: str) -> None:
     """Wire ``"a.out -> b.in"`` (``[delay]`` suffix allowed) inside ``net``."""
-    from ._graph import _CONN
-
-    m = _CONN.match(spec)
+    m = CONNECTION.match(spec)
     if not m:
         raise ValueError(f"cannot read connection {spec!r}")
     a, out, b, inp, delay = m.groups()

@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from impala_flow._graph import GraphError
 from impala_flow._registry import RegistrationError
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow.msgs import message
 from impala_flow.plugins import DISABLE_ENV, hookimpl, load_registry, make_plugin_manager
 from impala_flow.testing import CollectingSink, plugin_of

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from .._graph import GraphError, resolve_graph
+from .._session import Session
+from .._spec import GraphError
 from .._summary import RunSummary
 from .._yamlloc import YamlError
 from ..io import MissionReader, RecordingError
@@ -40,9 +41,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
-    """Ids of the io.Replayer components of the graph, its includes resolved."""
+    """Ids of the io.Replayer components of the graph, its includes resolved (the *load*
+    stage only: the graph is validated once the recording is bound to them)."""
     try:
-        spec, _ = resolve_graph(graph_path, variables=variables)
+        spec, _ = Session.read(graph_path, variables=variables)
     except (GraphError, YamlError) as e:
         raise CommandError(str(e), EXIT_USAGE) from None
     return [c.id for c in spec.components.values() if c.type == REPLAYER]

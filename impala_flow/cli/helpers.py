@@ -11,7 +11,6 @@ from typing import Any
 
 import yaml
 
-from .._build import RECORDER_TYPE
 from .._component import Source
 from .._network import Network
 from .._offline import timer_problems
@@ -19,6 +18,7 @@ from .._paths import not_writable
 from .._session import Session
 from .._spec import GraphError, checked_speed
 from .._summary import ComponentError, RunSummary
+from .._validate import RECORDER_TYPE
 from .._yamlloc import YamlError, load_value
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 

@@ -59,7 +59,7 @@ class Recorder(Component):
     def start(self) -> None:
         graph = json.loads(json.dumps(self.graph, default=str))  # plain data for safe_dump
         meta: dict[str, dict[str, Any]] = {
-            "impala_flow._graph": {"name": str(graph.get("name", "")),
+            "impala_flow.graph": {"name": str(graph.get("name", "")),
                                   "yaml": yaml.safe_dump(graph, sort_keys=False)},
             "impala_flow.params": {cid: json.dumps(c.get("params", {}), sort_keys=True,
                                                    default=str)

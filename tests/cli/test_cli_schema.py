@@ -10,9 +10,10 @@ from typing import Any
 import pytest
 import yaml
 
-from impala_flow._graph import CLOCK_KEYS, COMPONENT_KEYS, RECORD_KEYS, TOP_KEYS, GraphError
+from impala_flow._load import CLOCK_KEYS, COMPONENT_KEYS, RECORD_KEYS, TOP_KEYS
 from impala_flow._schema import graph_schema
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 
 from .conftest import ROOT, Installed
 

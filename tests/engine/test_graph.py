@@ -9,8 +9,8 @@ import pytest
 
 from impala_flow import Component, Input, Output
 from impala_flow._build import to_dot
-from impala_flow._graph import GraphError
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .components import Boom, Counter, Scale
@@ -180,7 +180,8 @@ def test_the_engines_recorder_cannot_be_blocked(tmp_path, monkeypatch):
 
 def test_a_record_section_without_the_recorder_is_refused(tmp_path):
     """A registry not built by impala_flow.plugins (no engine components) cannot record: one line says why."""
-    from impala_flow._graph import load_graph
+    from impala_flow._load import read_graph
+    from impala_flow._validate import validate
     from impala_flow.plugins import Registry
 
     p = write(tmp_path, "r.yaml", """
@@ -188,8 +189,9 @@ def test_a_record_section_without_the_recorder_is_refused(tmp_path):
           src: {type: t.Counter}
         record: {path: out.mcap, streams: ["src.*"]}
     """)
-    with pytest.raises(GraphError, match="needs the 'io.Recorder' component \\(the engine's own"):
-        load_graph(p, Registry())
+    spec, problems = read_graph(p)
+    problems += validate(spec, Registry())
+    assert any("needs the 'io.Recorder' component (the engine's own" in pr.message for pr in problems), problems
 
 
 def test_dot_export_lists_components_and_connections(tmp_path, session):

@@ -17,8 +17,8 @@ import pytest
 from mcap.reader import make_reader
 
 from impala_flow import Component, Input, Output, Param, Source
-from impala_flow._graph import GraphError
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow.testing import CollectingSink, plugin_of
 
 from .components import Counter, Scale
@@ -442,9 +442,13 @@ def test_a_graph_that_is_not_utf8_is_located(tmp_path, session):
 
 # --- item 14: layering ----------------------------------------------------------------------
 
-def test_spec_build_graph_import_in_one_direction_at_module_level():
-    """spec <- paths <- build <- graph, every engine import at the top of the module."""
-    allowed = {"spec": set(), "paths": {"spec"}, "build": {"spec", "paths"}, "graph": {"spec", "paths", "build"}}
+def test_graph_pipeline_stages_import_in_one_direction_at_module_level():
+    """spec <- paths <- load, resolve <- validate <- build (the session runs them in that
+    order and is the only module that imports them all), every engine import at the top of
+    the module. (The whole engine's order: the import-linter layers contract, and
+    tests/engine/test_layers.py.)"""
+    allowed = {"spec": set(), "paths": {"spec"}, "load": {"spec"}, "resolve": {"spec", "paths"},
+               "validate": {"spec", "paths"}, "build": {"spec", "validate"}}
     for name, ok in allowed.items():
         tree = ast.parse((ENGINE / f"_{name}.py").read_text())
         top = {id(n) for n in tree.body}

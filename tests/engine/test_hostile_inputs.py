@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 
 from impala_flow import Component, Input, Output, Param, Periodic, Source
-from impala_flow._graph import GraphError
 from impala_flow._network import Network
 from impala_flow._offline import IDLE_TIMER_FIRINGS, MAX_TIMER_FIRINGS, OfflineExecutor
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow._summary import ComponentError
 from impala_flow.testing import CollectingSink, ScriptedSource, plugin_of
 
@@ -126,8 +126,8 @@ def test_a_misspelt_graph_key_is_still_reported_as_such(tmp_path, session):
 # --- graph files that are not regular files ---------------------------------------------------
 
 def _load_in_subprocess(path: Path) -> subprocess.CompletedProcess[str]:
-    code = ("import sys\nfrom impala_flow._graph import resolve_graph, GraphError\n"
-            "try:\n    resolve_graph(sys.argv[1])\nexcept GraphError as e:\n    print(e)\n")
+    code = ("import sys\nfrom impala_flow._load import read_graph\nfrom impala_flow._spec import GraphError\n"
+            "try:\n    read_graph(sys.argv[1])\nexcept GraphError as e:\n    print(e)\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     return subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=60,
                           env=env, check=False)

@@ -13,8 +13,8 @@ import pytest
 
 from impala_eval.comparison import TrajectoryComparison
 from impala_flow._component import Output, Param, Source
-from impala_flow._graph import GraphError
 from impala_flow._session import Session
+from impala_flow._spec import GraphError
 from impala_flow.msgs import Pose2D, Trajectory2D
 from impala_flow.testing import run_graph_text
 

@@ -22,7 +22,7 @@ from impala_flow.io import MissionWriter, run_codecs
 def mission(tmp_path: Path) -> Path:
     path = tmp_path / "m.mcap"
     with MissionWriter(path, codecs=run_codecs(), chunk_size=2048,
-                       metadata={"impala_flow._graph": {"yaml": "name: g"}}) as w:
+                       metadata={"impala_flow.graph": {"yaml": "name: g"}}) as w:
         w.add_topic("slam/pose", msgs.Pose2D)
         w.add_topic("odo/speed", impala_msgs.Speed)
         w.add_topic("count", int)

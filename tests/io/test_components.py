@@ -97,7 +97,7 @@ def test_graph_record_section_records_patterns_with_metadata(tmp_path: Path) -> 
     assert info.compression == "lz4" and not info.truncated
     assert len(poses) == 30 and poses[3].x_m == pytest.approx(0.6)
     assert {c.topic for c in info.channels} >= {"/foxglove/car/pose"}
-    graph = yaml.safe_load(info.metadata["impala_flow._graph"]["yaml"])
+    graph = yaml.safe_load(info.metadata["impala_flow.graph"]["yaml"])
     assert graph["components"]["car"]["type"] == "test.Drive"
     assert "car" in info.metadata["impala_flow.params"]
     assert info.metadata["impala_flow.plugins"]["io"]

@@ -36,7 +36,7 @@ def test_same_seed_same_bytes_other_seed_other_world(tmp_path, capsys):
         # first beam at the middle of its 1/360 s
         assert first.t_ns == 1_767_225_600 * 10**9 + round(1e9 / 720)
         beams = [m.data for m in r.messages(["radar/beams"], end_ns=first.t_ns + 10_000_000)]
-    assert "radar.Simulator" in meta["impala_flow._graph"]["yaml"]  # the file says how it was made
+    assert "radar.Simulator" in meta["impala_flow.graph"]["yaml"]  # the file says how it was made
     assert beams and beams[0].config.name.lower().startswith("impala") and beams[0].up.dtype.name == "float32"
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from impala_flow._graph import parse_set
+from impala_flow._load import parse_set
 from impala_sweep.spec import SweepError, load_sweep
 
 from .conftest import GRAPH, ROOT, sweep_main

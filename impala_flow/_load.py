@@ -1,4 +1,10 @@
-"""Graphs in YAML: loading (include, ${variables}, --set overrides), then validation.
+"""Stage 1 of graph loading, *load*: YAML files -> :class:`~impala_flow._spec.GraphSpec`.
+
+The pipeline, run in order by :class:`impala_flow.Session`: **load** (this module: include,
+``${variables}``, ``--set`` overrides, every value located) -> **resolve**
+(:mod:`impala_flow._resolve`: relative paths) -> **validate** (:mod:`impala_flow._validate`:
+against the installed plugins) -> **build** (:mod:`impala_flow._build`: the network).
+Each stage returns the problems it found; the session raises them all at once.
 
 .. code-block:: yaml
 
@@ -20,12 +26,13 @@
 - ``${name}`` is replaced by the variable's value, also inside other variables' values
   (a cycle is an error). Caller variables (``--var``) win over the files' and must name
   a variable the graph declares or uses.
-- Relative paths in path parameters (``Param(str, path=...)``) and in ``record.path``
-  resolve against the folder of the file they are written in, unless the value starts with
-  a variable given on the command line or comes from ``--set``: those stay relative to the
-  working directory.
+- Each parameter and ``record.path`` notes the folder it is relative to (the folder of the
+  file it is written in, or the working directory for a value that starts with a variable
+  given on the command line or comes from ``--set``); the next stage,
+  :mod:`impala_flow._resolve`, resolves the paths against it.
 
-Validation (:func:`impala_flow._build.validate`) reports every problem at once, each with
+Loading checks what the files alone say (keys, variable cycles, connection syntax, ids);
+validation (:func:`impala_flow._validate.validate`) reports every other problem, each with
 file:line:col. The YAML is read with the safe loader only (see :mod:`impala_flow._yamlloc`).
 """
 
@@ -38,9 +45,6 @@ from typing import Any
 
 import yaml
 
-from ._build import validate
-from ._paths import resolve_paths
-from ._registry import Registry
 from ._spec import (
     CONNECTION,
     ComponentSpec,
@@ -67,11 +71,8 @@ from ._yamlloc import (
     shown,
 )
 
-__all__ = [
-    "GraphSpec", "ComponentSpec", "ConnectionSpec", "GraphError", "Problem", "load_graph",
-    "load_graph_text", "resolve_graph", "closest", "did_you_mean", "parse_set", "TOP_KEYS",
-    "MAX_GRAPH_BYTES", "graph_files",
-]
+__all__ = ["read_graph", "parse_set", "TOP_KEYS", "COMPONENT_KEYS", "CLOCK_KEYS", "RECORD_KEYS", "MAX_GRAPH_BYTES",
+           "graph_files"]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
 COMPONENT_KEYS = ("type", "params", "on_error", "description", "override")
@@ -81,7 +82,6 @@ RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxs
 MAX_GRAPH_BYTES = 2 * MAX_BYTES
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_CONN = CONNECTION  # kept for impala_flow.testing
 
 Lookup = Callable[[str, "Loc | None"], tuple[bool, Any]]
 
@@ -257,41 +257,7 @@ def _read(path: Path, problems: list[Problem], seen: tuple[Path, ...], done: set
     return doc, chain
 
 
-def load_graph(path: str | Path, registry: Registry, overrides: Iterable[str] = (),
-               variables: dict[str, Any] | None = None, text: str | None = None) -> GraphSpec:
-    """Load and validate a graph file; raise :class:`GraphError` with every problem.
-
-    ``variables`` are the caller's (``--var``): they win over the files' and a relative path
-    starting with one of them stays relative to the working directory."""
-    spec, problems = resolve_graph(path, overrides, variables, text)
-    problems += resolve_paths(spec, registry)
-    problems += validate(spec, registry)
-    if problems:
-        raise GraphError(capped(problems))
-    return spec
-
-
-#: problems listed per file; the others are counted in one line
-MAX_PROBLEMS_PER_FILE = 20
-
-
-def capped(problems: list[Problem], limit: int = MAX_PROBLEMS_PER_FILE) -> list[Problem]:
-    """``problems`` with at most ``limit`` per file, then one line counting the rest of that
-    file's (a file full of errors is not reprinted line by line)."""
-    seen: dict[str, int] = {}
-    out: list[Problem] = []
-    for p in problems:
-        file = p.loc.file if p.loc is not None else ""
-        seen[file] = seen.get(file, 0) + 1
-        if seen[file] <= limit:
-            out.append(p)
-    for file, n in seen.items():
-        if n > limit:
-            out.append(Problem(Loc(file, 0, 0) if file else None, f"and {n - limit} more problems"))
-    return out
-
-
-def resolve_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,
+def read_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[str, Any] | None = None,
                   text: str | None = None) -> tuple[GraphSpec, list[Problem]]:
     """Read a graph with its includes, variables and overrides applied, not yet checked
     against the plugins (so path parameters are not resolved yet): (spec, problems found so
@@ -393,10 +359,6 @@ def _check_duplicate_connections(spec: GraphSpec, problems: list[Problem]) -> No
                                            "(every sample would be delivered twice)"))
         else:
             first[key] = c
-
-
-def load_graph_text(text: str, registry: Registry, name: str = "<graph>", **kw: Any) -> GraphSpec:
-    return load_graph(name, registry, text=text, **kw)
 
 
 def _merge(spec: GraphSpec, d: LocDict, problems: list[Problem]) -> None:
