@@ -8,7 +8,7 @@ parameters were never set on (the FMT covariance constants: campus-open seeds 10
 campus-loop seeds 21, 22; the default scenario seed 2009 is the test's) and replayed through
 graphs/fmt_ekf.yaml; the comparison's metrics (rigid alignment) are printed for the EKF, iSAM2
 and LM. Then the EKF's cost per step against the number of poses (O(n^2): the covariance is
-3n x 3n), measured on slam.EkfSlam's own filter (impala_slam.ekf_core.PoseEkf) grown to 1 200
+3n x 3n), measured on slam.EkfSlam's own filter (impala_slam.ekf_slam.core.PoseEkf) grown to 1 200
 poses with one registration update and the loop-candidate gate per step, plus the FMT's own
 time per registration; the plot goes to out/bench-fmt-ekf/ekf_step_ms.png. Then the Oxford sample through
 graphs/oxford.yaml (FMT beside R-SLAM). Last line: JSON with the issue's keys.
@@ -40,7 +40,7 @@ def _run(graph: str, mission: Path, out: Path) -> tuple[dict, dict]:
 
 
 def ekf_growth(n_max: int = 1200) -> list[tuple[int, float]]:
-    from impala_slam.ekf_core import PoseEkf
+    from impala_slam.ekf_slam.core import PoseEkf
 
     rng = np.random.default_rng(0)
     ekf = PoseEkf()

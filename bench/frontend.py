@@ -29,17 +29,17 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from impala_flow.msgs import Grid, Pose2D  # noqa: E402
-from impala_radar.frontend.ego_velocity import fit_ego_velocity  # noqa: E402
-from impala_radar.frontend.pairer import detections_of_pairs  # noqa: E402
-from impala_radar.frontend.pairing import pair_turn, xcorr_speed_prior  # noqa: E402
-from impala_radar.frontend.panoramic import (  # noqa: E402
+from impala_radar.ego_velocity.core import fit_ego_velocity  # noqa: E402
+from impala_radar.pairer.component import detections_of_pairs  # noqa: E402
+from impala_radar.pairer.core import pair_turn, xcorr_speed_prior  # noqa: E402
+from impala_radar.panoramic.core import (  # noqa: E402
     doppler_compensated_power,
     integrate_poses,
     relative_to,
     scan_to_grid,
 )
-from impala_radar.frontend.speckle import multilook  # noqa: E402
-from impala_radar.sim.scenario import load_scenario  # noqa: E402
+from impala_radar.simulator.scenario import load_scenario  # noqa: E402
+from impala_radar.speckle.core import multilook  # noqa: E402
 
 
 def _turns(n_turns: int, start_s: float):

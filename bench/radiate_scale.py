@@ -456,7 +456,7 @@ def run_kiss(ds, idx):
         print("kiss-icp not installed: skipped")
         return None
     from impala_radar.datasets.common import counts_to_power
-    from impala_radar.frontend.extractor import extract_peaks
+    from impala_radar.extractor.core import extract_peaks
 
     icp = KissICP(KISSConfig(data=DataConfig(max_range=100.0, min_range=BLANK_M, deskew=True),
                              mapping=MappingConfig(voxel_size=1.0, max_points_per_voxel=20)))

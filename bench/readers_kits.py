@@ -44,8 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "plugins")]
 
 from impala_flow.msgs import wrap_angle  # noqa: E402
-from impala_radar.datasets import open_dataset  # noqa: E402
 from impala_radar.datasets.boreas import BOREAS_RANGE_OFFSET_M  # noqa: E402
+from impala_radar.datasets.formats import open_dataset  # noqa: E402
 
 OUT: dict[str, float | int | str] = {}
 

@@ -147,7 +147,7 @@ def foreign(tmp: Path, n: int, reps: int) -> dict[str, float]:
 def json_views(tmp: Path, n: int, reps: int, reg: CodecRegistry) -> dict[str, float]:
     """What the JSON views (generic decodability of every stream) cost: the same scalar and
     beam streams written with and without them (write time, file size)."""
-    from impala_radar.sim.presets import IMPALA  # the beams' config, as a simulated mission has it
+    from impala_radar.simulator.presets import IMPALA  # the beams' config, as a simulated mission has it
 
     speeds = [impala_msgs.Speed(1.0 + 1e-3 * i, 0.01) for i in range(n)]
     rng = np.random.default_rng(2)  # spectra that differ, as real ones do (zstd finds no repeats)

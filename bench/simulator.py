@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> dict:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
 
-    from impala_radar.sim.scenario import load_scenario
+    from impala_radar.simulator.scenario import load_scenario
 
     t0 = time.perf_counter()
     sc = load_scenario(args.scenario, seed=args.seed, duration_s=float(args.turns))

@@ -84,11 +84,11 @@ def test_the_scan_sees_imports(tmp_path: Path) -> None:  # guards the scanner it
         "from typing import TYPE_CHECKING\n"
         "if TYPE_CHECKING:\n    import impala_flow.io\n"
         "def f():\n    from ..msgs import Pose2D\n    import importlib\n"
-        "    return importlib.import_module('impala_radar.sim')\n"
+        "    return importlib.import_module('impala_radar.simulator')\n"
     )
     assert imported_modules(pkg / "__init__.py") == [(1, "impala_flow.sub")]
     assert [(line, m) for line, m in imported_modules(pkg / "x.py") if _top(m) != "typing"] == [
-        (3, "impala_flow.io"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.sim"),
+        (3, "impala_flow.io"), (5, "impala_flow.msgs"), (6, "importlib"), (7, "impala_radar.simulator"),
     ]
     mods = {m for _, m in imported_modules(ENGINE / "plugins.py")}
     assert {"pluggy", "impala_flow.hookspecs", "impala_flow._registry"} <= mods

@@ -1,7 +1,11 @@
 """Entry point of the evaluation plugin (``eval = "impala_eval.plugin"``).
 
-Component and command modules are imported inside the hooks, so loading the plugin (e.g.
-to build the command line) stays cheap.
+Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
+``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
+``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
+``impala_msgs``); code several algorithms share in a module at the plugin's top; every
+``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
+(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
 """
 
 from __future__ import annotations
@@ -13,9 +17,9 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
-    from .comparison import TrajectoryComparison
-    from .evaluator import TrajectoryEvaluator
-    from .tracking import TrackingEvaluator
+    from .comparison.component import TrajectoryComparison
+    from .evaluator.component import TrajectoryEvaluator
+    from .tracking.component import TrackingEvaluator
 
     registry.add_component(TrajectoryEvaluator)
     registry.add_component(TrackingEvaluator)

@@ -13,7 +13,8 @@ from impala_flow import Session, output_clash
 from impala_flow.cli import EXIT_FAILED, EXIT_USAGE, CommandError
 from impala_flow.cli.helpers import open_session, record_source
 
-from .sources import DATASET_SOURCES, DATASET_TOPICS, SIM_TOPICS, Simulator
+from .datasets.component import DATASET_SOURCES, DATASET_TOPICS
+from .simulator.component import SIM_TOPICS, Simulator
 
 __all__ = ["add_commands", "simulate_mission"]
 
@@ -215,7 +216,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from .sim.scenario import ScenarioError, scenario_path
+    from .simulator.scenario import ScenarioError, scenario_path
 
     try:
         inputs = [(str(scenario_path(args.scenario)), "the scenario file")]
@@ -263,7 +264,7 @@ def simulate_mission(session: Session, scenario: str, path: str, *, seed: int | 
 
 def _dataset_error(e: BaseException) -> BaseException | None:
     """The DatasetError behind a recording failure (component error chain), if any."""
-    from .datasets import DatasetError
+    from .datasets.common import DatasetError
 
     while e is not None:
         if isinstance(e, DatasetError):
@@ -273,7 +274,7 @@ def _dataset_error(e: BaseException) -> BaseException | None:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from .datasets import DatasetError
+    from .datasets.common import DatasetError
 
     out = check_output(args.output, [(args.folder, "the dataset folder")], args.overwrite)
     session = open_session()

@@ -1,5 +1,13 @@
 """Entry point of the radar plugin: radar sources, front-end components, the ``simulate``
-mission source, CLI commands."""
+mission source, CLI commands.
+
+Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
+``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
+``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
+``impala_msgs``); code several algorithms share in a module at the plugin's top; every
+``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
+(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
+"""
 
 from __future__ import annotations
 
@@ -10,14 +18,19 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
-    from .sources import BoreasScans, OxfordScans, RadiateScans, Simulator
+    from .datasets.component import BoreasScans, OxfordScans, RadiateScans
+    from .simulator.component import Simulator
 
     registry.add_component(Simulator)
     registry.add_component(OxfordScans)
     registry.add_component(BoreasScans)
     registry.add_component(RadiateScans)
-    from .frontend import EgoVelocity, FuzzyPairer, PanoramicBuilder, PeakExtractor, SpeckleFilter
-    from .frontend.report import FrontendReport
+    from .ego_velocity.component import EgoVelocity
+    from .extractor.component import PeakExtractor
+    from .pairer.component import FuzzyPairer
+    from .panoramic.component import PanoramicBuilder
+    from .report.component import FrontendReport
+    from .speckle.component import SpeckleFilter
 
     registry.add_component(FuzzyPairer)
     registry.add_component(EgoVelocity)

@@ -1,6 +1,11 @@
 """Entry point of the SLAM plugin (``slam = "impala_slam.plugin"``).
 
-Component modules are imported inside the hook, so loading the plugin stays cheap.
+Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
+``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
+``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
+``impala_msgs``); code several algorithms share in a module at the plugin's top; every
+``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
+(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
 """
 
 from __future__ import annotations
@@ -12,13 +17,13 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
-    from .dead_reckoning import DeadReckoning
-    from .ekf_slam import EkfSlam
-    from .kissicp import KissIcp
-    from .odometry import DistortionOdometry
-    from .posegraph import PoseGraph
-    from .registration import FmtRegistration
-    from .rslam import RSlam
+    from .dead_reckoning.component import DeadReckoning
+    from .ekf_slam.component import EkfSlam
+    from .fmt.component import FmtRegistration
+    from .kissicp.component import KissIcp
+    from .odometry.component import DistortionOdometry
+    from .posegraph.component import PoseGraph
+    from .rslam.component import RSlam
 
     registry.add_component(RSlam)
     registry.add_component(DeadReckoning)

@@ -3,7 +3,3 @@
 Components (registered by :mod:`impala_tracking.plugin`): ``tracking.MoverDetector`` and
 ``tracking.Tracker``. Message type: :class:`MoverDetections`.
 """
-
-from .types import MoverDetections
-
-__all__ = ["MoverDetections"]

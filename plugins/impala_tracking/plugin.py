@@ -1,6 +1,11 @@
 """Entry point of the tracking plugin (``tracking = "impala_tracking.plugin"``).
 
-Component modules are imported inside the hook, so loading the plugin stays cheap.
+Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
+``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
+``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
+``impala_msgs``); code several algorithms share in a module at the plugin's top; every
+``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
+(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
 """
 
 from __future__ import annotations
@@ -12,8 +17,8 @@ from impala_flow.plugins import hookimpl
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
-    from .detector import MoverDetector
-    from .tracker import Tracker
+    from .detector.component import MoverDetector
+    from .tracker.component import Tracker
     from .types import MoverDetections
 
     registry.add_type(MoverDetections)

@@ -13,7 +13,7 @@ from impala_flow import Component, Input, Output
 from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components, run_graph_text
 from impala_msgs import RadarBeam, RadarDetections, Speed
-from impala_radar.sim.presets import IMPALA
+from impala_radar.simulator.presets import IMPALA
 
 MS = 1_000_000
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from impala_eval.comparison import TrajectoryComparison
+from impala_eval.comparison.component import TrajectoryComparison
 from impala_flow._component import Output, Param, Source
 from impala_flow._session import Session
 from impala_flow._spec import GraphError
@@ -165,7 +165,7 @@ def test_metrics_only_without_report(tmp_path, monkeypatch):
 
 
 def test_iterations_beyond_the_row_budget_are_thinned_evenly(tmp_path, monkeypatch):
-    monkeypatch.setattr("impala_eval.comparison.MAX_ROWS", 50)  # ekf: 20 + 40 + 61 poses
+    monkeypatch.setattr("impala_eval.comparison.component.MAX_ROWS", 50)  # ekf: 20 + 40 + 61 poses
     m, comp = _run(f'{{report: "{tmp_path}", estimates: [ekf]}}', ["ekf"], baseline=False)
     assert m["ekf_iterations"] == 3
     assert m["ekf_ate_rmse_m"] == pytest.approx(math.sqrt(np.mean((0.01 * K) ** 2)), abs=1e-4)

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from impala_eval import TrajectoryEvaluator, trajectory_metrics
+from impala_eval.evaluator.component import TrajectoryEvaluator
+from impala_eval.metrics import trajectory_metrics
 
 EVO_APE = shutil.which("evo_ape") or shutil.which("evo_ape", path=str(Path(sys.executable).parent))
 
@@ -57,7 +58,7 @@ def test_ate_of_a_4hz_estimate_against_a_20hz_gps_truth_matches_evo_ape(tmp_path
     headings unknown at rest, the estimate at 4 Hz on every 5th GPS time); evo_ape --align
     (SE(3) Umeyama on the positions, z = 0) on the same poses, the GPS file holding each
     fix once (evo matches by stamp: the estimate's poses in the GPS hole find no truth)."""
-    from impala_eval.comparison import TrajectoryComparison
+    from impala_eval.comparison.component import TrajectoryComparison
     from impala_flow.msgs import Pose2D
     from impala_flow.testing import ScriptedSource, run_components
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from impala_eval import TrajectoryEvaluator
+from impala_eval.evaluator.component import TrajectoryEvaluator
 from impala_eval.metrics import twist_errors
 from impala_eval.report import find_gaps, format_metrics, gap_summary
 from impala_flow.msgs import Pose2D, Twist2D
@@ -181,7 +181,7 @@ def test_kitti_drift_of_a_heading_drift_is_the_chord_of_its_arc(tmp_path):
 
 
 def _compare(truth, est, tmp_path, **params):
-    from impala_eval.comparison import TrajectoryComparison
+    from impala_eval.comparison.component import TrajectoryComparison
 
     script = [(t, "truth", p) for t, p in truth]
     script += [(int(t), "est", Pose2D(*p)) for t, p in zip(est[0], est[1].tolist(), strict=True)]

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from impala_eval import TrajectoryEvaluator, rigid_align_2d, trajectory_metrics
-from impala_eval.metrics import interpolate_truth
+from impala_eval.evaluator.component import TrajectoryEvaluator
+from impala_eval.metrics import interpolate_truth, rigid_align_2d, trajectory_metrics
 from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import ScriptedSource, run_components
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from impala_msgs import SPEED_OF_LIGHT_MPS
-from impala_radar.sim.presets import IMPALA
-from impala_radar.sim.spectra import Echoes, RadarParams, Synthesizer, noise_power_per_bin_w
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.simulator.spectra import Echoes, RadarParams, Synthesizer, noise_power_per_bin_w
 
 
 def beat_bins(range_m, radial_mps, config=IMPALA):

@@ -15,13 +15,13 @@ import pytest
 from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import Speed, YawRate
-from impala_radar.frontend.panoramic import relative_to
-from impala_radar.frontend.panoramic_builder import PanoramicBuilder
-from impala_radar.sim.presets import IMPALA, K2PI
-from impala_radar.sim.simulate import simulate
-from impala_radar.sim.spectra import RadarParams
-from impala_radar.sim.vehicle import Trajectory
-from impala_radar.sim.world import WorldBuilder
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.panoramic.core import relative_to
+from impala_radar.simulator.core import simulate
+from impala_radar.simulator.presets import IMPALA, K2PI
+from impala_radar.simulator.spectra import RadarParams
+from impala_radar.simulator.vehicle import Trajectory
+from impala_radar.simulator.world import WorldBuilder
 
 CELL_M = 0.2
 POINTS = np.array([[30.0, 20.0], [-25.0, -15.0], [5.0, 40.0], [30.0, -28.0], [-35.0, 25.0]])
@@ -178,7 +178,7 @@ def test_partial_first_and_last_turns():
 
 
 def _pairs(beams):
-    from impala_radar.frontend.pairer import FuzzyPairer
+    from impala_radar.pairer.component import FuzzyPairer
 
     src = ScriptedSource("src", [(t, "beams", b) for t, b in beams])
     dets = CollectingSink("dets")

@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
-from impala_radar.frontend.ego_velocity import EgoVelocity, elevation_factor
-from impala_radar.frontend.pairer import FuzzyPairer
-from impala_radar.sim.presets import IMPALA
-from impala_radar.sim.simulate import simulate
-from impala_radar.sim.vehicle import Trajectory
-from impala_radar.sim.world import WorldBuilder
+from impala_radar.ego_velocity.component import EgoVelocity
+from impala_radar.ego_velocity.core import elevation_factor
+from impala_radar.pairer.component import FuzzyPairer
+from impala_radar.simulator.core import simulate
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.simulator.vehicle import Trajectory
+from impala_radar.simulator.world import WorldBuilder
 
 V_MPS = 5.0
 SEEDS = (11, 12, 13, 14)

@@ -5,13 +5,14 @@ import pytest
 
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import RadarDetections
-from impala_radar.frontend.ego_velocity import EgoVelocity, elevation_factor, fit_ego_velocity
-from impala_radar.frontend.pairer import FuzzyPairer, detections_of_pairs
-from impala_radar.frontend.pairing import pair_turn, xcorr_speed_prior
-from impala_radar.sim.presets import IMPALA
-from impala_radar.sim.simulate import simulate
-from impala_radar.sim.vehicle import Trajectory
-from impala_radar.sim.world import WorldBuilder
+from impala_radar.ego_velocity.component import EgoVelocity
+from impala_radar.ego_velocity.core import elevation_factor, fit_ego_velocity
+from impala_radar.pairer.component import FuzzyPairer, detections_of_pairs
+from impala_radar.pairer.core import pair_turn, xcorr_speed_prior
+from impala_radar.simulator.core import simulate
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.simulator.vehicle import Trajectory
+from impala_radar.simulator.world import WorldBuilder
 
 V_MPS = 5.0
 

@@ -11,7 +11,7 @@ import pytest
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import RadarBeam, RadarDetections
 from impala_radar.datasets.common import navtech_config
-from impala_radar.frontend import PeakExtractor
+from impala_radar.extractor.component import PeakExtractor
 
 CONFIG = navtech_config("test-navtech", 576, 0.17361, range_offset_m=0.5 * 0.17361, beams_per_turn=400,
                         rotation_hz=4.0)

@@ -10,8 +10,12 @@ from impala_flow.cli import main
 from impala_flow.io import MissionReader
 from impala_flow.testing import ScriptedSource, run_components
 from impala_msgs import RadarBeam, Speed
-from impala_radar.frontend import EgoVelocity, FrontendReport, FuzzyPairer, PanoramicBuilder, SpeckleFilter
-from impala_radar.sim.presets import IMPALA
+from impala_radar.ego_velocity.component import EgoVelocity
+from impala_radar.pairer.component import FuzzyPairer
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.report.component import FrontendReport
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.speckle.component import SpeckleFilter
 
 from ._scenes import target_beams
 

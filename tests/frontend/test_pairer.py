@@ -4,9 +4,8 @@ import numpy as np
 
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import SPEED_OF_LIGHT_MPS, RadarBeam
-from impala_radar.frontend.fuzzy import pair_score
-from impala_radar.frontend.pairer import FuzzyPairer
-from impala_radar.frontend.pairing import (
+from impala_radar.pairer.component import FuzzyPairer
+from impala_radar.pairer.core import (
     nearest_peak_pairs,
     pair_turn,
     radial_speed_from_beats_mps,
@@ -14,8 +13,9 @@ from impala_radar.frontend.pairing import (
     static_offset_bins,
     xcorr_speed_prior,
 )
-from impala_radar.frontend.peaks import cfar_factor
-from impala_radar.sim.presets import IMPALA
+from impala_radar.pairer.fuzzy import pair_score
+from impala_radar.peaks import cfar_factor
+from impala_radar.simulator.presets import IMPALA
 
 from ._scenes import beat_bins, score_pairs, target_beams
 

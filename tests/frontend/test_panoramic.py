@@ -5,13 +5,13 @@ import numpy as np
 from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import RadarScan, Speed, YawRate
-from impala_radar.frontend.panoramic import relative_beam_poses, relative_to, scan_to_grid
-from impala_radar.frontend.panoramic_builder import PanoramicBuilder
-from impala_radar.sim.presets import IMPALA
-from impala_radar.sim.simulate import simulate
-from impala_radar.sim.spectra import RadarParams
-from impala_radar.sim.vehicle import Trajectory
-from impala_radar.sim.world import WorldBuilder
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.panoramic.core import relative_beam_poses, relative_to, scan_to_grid
+from impala_radar.simulator.core import simulate
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.simulator.spectra import RadarParams
+from impala_radar.simulator.vehicle import Trajectory
+from impala_radar.simulator.world import WorldBuilder
 
 V_MPS = 5.0
 CELL_M = 0.2
@@ -68,7 +68,7 @@ def test_static_point_lands_within_two_cells_and_smears_without_correction():
     ref = traj.pose(t_ns[-1])
     truth = relative_to(np.column_stack([POINTS, np.zeros(len(POINTS))]), ref)[:, :2]
     # the up ramp alone carries the static Doppler f_d: compare with the Doppler-compensated image
-    from impala_radar.frontend.panoramic import doppler_compensated_power
+    from impala_radar.panoramic.core import doppler_compensated_power
 
     power = doppler_compensated_power(power, np.stack([b.down for _, _, b in beams]), az, V_MPS, IMPALA)
     g, o = scan_to_grid(power, az, relative_beam_poses(t_ns, V_MPS, 0.0), IMPALA.range_per_bin_m, CELL_M, 100.0)

@@ -4,7 +4,8 @@ import numpy as np
 
 from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
-from impala_radar.frontend.speckle import SpeckleFilter, enl, threshold_image
+from impala_radar.speckle.component import SpeckleFilter
+from impala_radar.speckle.core import enl, threshold_image
 
 CELL_M = 0.2
 N_HALF = 150

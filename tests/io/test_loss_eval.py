@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from mcap.reader import make_reader
 
-from impala_eval import TrajectoryEvaluator
+from impala_eval.evaluator.component import TrajectoryEvaluator
 from impala_eval.report import format_metrics
 from impala_flow import msgs
 from impala_flow.io import MissionWriter, Replayer, run_codecs

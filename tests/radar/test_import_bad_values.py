@@ -15,11 +15,11 @@ from PIL import Image
 from impala_flow._component import ParamError
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
-from impala_radar.datasets import DatasetError, ImportReport, iter_mission
 from impala_radar.datasets.boreas import BOREAS_POSE_COLUMNS
+from impala_radar.datasets.common import DatasetError, ImportReport, iter_mission
+from impala_radar.datasets.component import OxfordScans
 from impala_radar.datasets.oxford import OxfordDataset
 from impala_radar.datasets.radiate import RadiateDataset
-from impala_radar.sources import OxfordScans
 
 from ._dataset_files import ROW_US, navtech_folder, navtech_png, radiate_folder, radiate_gps
 from ._import_cli import import_block, refused

@@ -13,8 +13,8 @@ from PIL import Image
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
 from impala_flow.msgs import wrap_angle
-from impala_radar.datasets import open_dataset
 from impala_radar.datasets.boreas import BOREAS_POSE_COLUMNS
+from impala_radar.datasets.formats import open_dataset
 
 from ..datasets import boreas_frame_or_skip
 from ._dataset_files import navtech_folder
@@ -105,7 +105,7 @@ def test_truth_left_turn_is_positive_yaw_and_y(tmp_path):
     for roll, sign in ((math.pi, 1.0), (0.0, -1.0)):
         _poses_csv(tmp_path / "applanix" / "radar_poses.csv", t_us, east, north, [roll] * 5, list(sign * a))
         report_ds = open_dataset("boreas", str(tmp_path))
-        from impala_radar.datasets import ImportReport
+        from impala_radar.datasets.common import ImportReport
 
         t, xyt = report_ds.truth(ImportReport())
         assert np.allclose(xyt[:, 2], a, atol=1e-12)

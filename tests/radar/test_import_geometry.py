@@ -14,7 +14,7 @@ from PIL import Image
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
 from impala_flow.msgs import wrap_angle
-from impala_radar.datasets import open_dataset
+from impala_radar.datasets.formats import open_dataset
 
 from ..datasets import _find, boreas_frame_or_skip
 from ._dataset_files import navtech_folder, navtech_png, radiate_folder

@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
 from impala_flow.msgs import wrap_angle
-from impala_radar.navtech import read_navtech_png
+from impala_radar.datasets.navtech_png import read_navtech_png
 
 from ..datasets import oxford_sample_or_skip
 

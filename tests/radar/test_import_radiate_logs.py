@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from impala_flow.msgs import HEADING_UNKNOWN_VAR_RAD2, wrap_angle
-from impala_radar.datasets import ImportReport, open_dataset
+from impala_radar.datasets.common import ImportReport
+from impala_radar.datasets.formats import open_dataset
 
 from ..datasets import _find
 from ._dataset_files import radiate_folder, radiate_gps

@@ -12,12 +12,12 @@ import pytest
 
 import impala_msgs
 from impala_flow import msgs
-from impala_radar.navtech import (
+from impala_radar.datasets.navtech_png import read_navtech_png
+from impala_radar.datasets.oxford import (
     NAVTECH_CTS350X,
     OxfordRelativePoses,
     compose_relative_poses,
     iter_oxford_folder,
-    read_navtech_png,
     read_oxford_ground_truth,
     scan_to_beams,
 )

@@ -14,7 +14,8 @@ import math
 import numpy as np
 from scipy.ndimage import median_filter
 
-from impala_radar.datasets import ImportReport, open_dataset
+from impala_radar.datasets.common import ImportReport
+from impala_radar.datasets.formats import open_dataset
 
 from ..datasets import _find
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import impala_msgs
-from impala_radar.sim.sensors import Gps, Gyro, Odometer, make_sensors, sample_times_ns
-from impala_radar.sim.vehicle import Trajectory
+from impala_radar.simulator.sensors import Gps, Gyro, Odometer, make_sensors, sample_times_ns
+from impala_radar.simulator.vehicle import Trajectory
 
 STRAIGHT = Trajectory.from_waypoints([[0.0, 0.0], [400.0, 0.0]], 2.0, rest_at_ends=False)
 LOOP = Trajectory.from_waypoints([[0.0, 0.0], [40.0, 0.0], [40.0, 30.0], [0.0, 30.0]], 3.0,

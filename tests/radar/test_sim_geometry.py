@@ -4,10 +4,10 @@ shadowing behind buildings (seed 1 §2.3, §4.2)."""
 import numpy as np
 import pytest
 
-from impala_radar.sim.presets import IMPALA
-from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
-from impala_radar.sim.spectra import RadarParams, noise_power_per_bin_w
-from impala_radar.sim.world import WorldBuilder
+from impala_radar.simulator.core import beam_azimuths_rad, beam_times_ns, simulate
+from impala_radar.simulator.presets import IMPALA
+from impala_radar.simulator.spectra import RadarParams, noise_power_per_bin_w
+from impala_radar.simulator.world import WorldBuilder
 
 from ._sim_helpers import StraightLine, peak_bin, range_velocity
 

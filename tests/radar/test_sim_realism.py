@@ -11,19 +11,19 @@ import pytest
 from scipy import stats
 
 from impala_msgs import SPEED_OF_LIGHT_MPS as C
-from impala_radar.sim.antenna import AzimuthPattern
-from impala_radar.sim.clutter import grazing_factor, vegetation_jitter
-from impala_radar.sim.presets import IMPALA, K2PI, NAVTECH
-from impala_radar.sim.receiver import adc_counts
-from impala_radar.sim.scenario import load_scenario
-from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
-from impala_radar.sim.spectra import (
+from impala_radar.simulator.antenna import AzimuthPattern
+from impala_radar.simulator.clutter import grazing_factor, vegetation_jitter
+from impala_radar.simulator.core import beam_azimuths_rad, beam_times_ns, simulate
+from impala_radar.simulator.presets import IMPALA, K2PI, NAVTECH
+from impala_radar.simulator.receiver import adc_counts
+from impala_radar.simulator.scenario import load_scenario
+from impala_radar.simulator.spectra import (
     RadarParams,
     apparent_range_shift_m,
     noise_power_per_bin_w,
     received_power_w,
 )
-from impala_radar.sim.world import Mover, WorldBuilder
+from impala_radar.simulator.world import Mover, WorldBuilder
 
 from ._sim_helpers import StraightLine, peak_bin
 
@@ -399,7 +399,7 @@ def test_noise_through_the_output_stage_has_the_zero_fraction_of_its_level():
 
 
 def test_bad_physics_parameters_are_one_line_scenario_errors(tmp_path):
-    from impala_radar.sim.scenario import ScenarioError
+    from impala_radar.simulator.scenario import ScenarioError
 
     f = tmp_path / "bad.yaml"
     f.write_text("world: beynes\nseed: 1\npreset: k2pi\nradar: {sidelobe_db: -5.0}\n")

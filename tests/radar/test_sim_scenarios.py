@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import impala_msgs
-from impala_radar.sim.scenario import SCENARIO_DIR, ScenarioError, load_scenario
+from impala_radar.simulator.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 
 
 def _digest(items) -> str:

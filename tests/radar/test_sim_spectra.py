@@ -5,16 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from impala_radar.sim.presets import IMPALA, K2PI, preset
-from impala_radar.sim.simulate import beam_azimuths_rad, beam_times_ns, simulate
-from impala_radar.sim.spectra import (
+from impala_radar.simulator.core import beam_azimuths_rad, beam_times_ns, simulate
+from impala_radar.simulator.presets import IMPALA, K2PI, preset
+from impala_radar.simulator.spectra import (
     Echoes,
     RadarParams,
     Synthesizer,
     noise_power_per_bin_w,
     received_power_w,
 )
-from impala_radar.sim.world import Mover, WorldBuilder
+from impala_radar.simulator.world import Mover, WorldBuilder
 
 from ._sim_helpers import StraightLine, beat_hz, peak_bin, range_velocity
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from impala_flow.testing import CollectingSink, run_components
-from impala_radar.sim.presets import NAVTECH, preset
-from impala_radar.sim.scenario import load_scenario
-from impala_radar.sources import Simulator
+from impala_radar.simulator.component import Simulator
+from impala_radar.simulator.presets import NAVTECH, preset
+from impala_radar.simulator.scenario import load_scenario
 
 
 def test_navtech_preset_numbers():

@@ -59,7 +59,7 @@ def test_a_bad_scenario_file_exits_2_naming_file_key_and_line(tmp_path, capsys):
 
 def test_the_epoch_moves_the_stamps_not_the_mission(tmp_path):
     """The same seed from t = 0 and from another date: the same samples, shifted by the epoch."""
-    from impala_radar.sources import Simulator, epoch_ns
+    from impala_radar.simulator.component import Simulator, epoch_ns
 
     assert epoch_ns("1970-01-02T00:00:00Z") == 86_400 * 10**9 and epoch_ns("") == 0
     assert epoch_ns("2026-01-01T01:00:00+01:00") == 1_767_225_600 * 10**9  # a zone is honoured
@@ -77,7 +77,7 @@ def test_the_epoch_moves_the_stamps_not_the_mission(tmp_path):
 
 
 def test_a_bad_epoch_is_a_one_line_error(tmp_path, capsys):
-    from impala_radar.sources import Simulator
+    from impala_radar.simulator.component import Simulator
 
     with pytest.raises(ValueError, match="epoch_utc 'yesterday' is not an ISO 8601"):
         Simulator("sim", epoch_utc="yesterday").start()

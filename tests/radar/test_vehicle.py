@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from impala_radar.sim.vehicle import Trajectory
+from impala_radar.simulator.vehicle import Trajectory
 
 RECT = np.array([[0.0, 0.0], [60.0, 0.0], [60.0, 30.0], [0.0, 30.0]])
 ZIGZAG = np.array([[0.0, 0.0], [25.0, 0.0], [25.0, 25.0], [50.0, 25.0], [55.0, 0.0]])

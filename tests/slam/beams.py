@@ -11,7 +11,7 @@ import numpy as np
 
 from impala_flow.msgs import Pose2D
 from impala_msgs import RadarBeam
-from impala_radar.sim.presets import NAVTECH
+from impala_radar.simulator.presets import NAVTECH
 
 #: NAVTECH with fewer bins (1000 x 4.38 cm = 43.8 m): the same geometry, a quarter of the work
 CONFIG = dataclasses.replace(NAVTECH, n_bins=1000, range_max_m=1000 * NAVTECH.range_per_bin_m)

@@ -4,7 +4,7 @@ what its docstring says)."""
 import numpy as np
 import pytest
 
-from impala_slam.matching import contrast
+from impala_slam.rslam.matching import contrast
 
 
 def test_contrast_is_the_cell_minus_the_mean_of_the_observed_cells_around_it():

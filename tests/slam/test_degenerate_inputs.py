@@ -9,25 +9,25 @@ import math
 import numpy as np
 import pytest
 
-from impala_eval.evaluator import TrajectoryEvaluator
-from impala_eval.tracking import TrackingEvaluator
+from impala_eval.evaluator.component import TrajectoryEvaluator
+from impala_eval.tracking.component import TrackingEvaluator
 from impala_flow import Component, Input, Param
 from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import ObjectStates, RadarBeam
-from impala_radar.frontend.ego_velocity import EgoVelocity
-from impala_radar.frontend.extractor import PeakExtractor
-from impala_radar.frontend.pairer import FuzzyPairer
-from impala_radar.frontend.panoramic_builder import PanoramicBuilder
-from impala_radar.sim.presets import IMPALA
-from impala_slam.ekf_slam import EkfSlam
-from impala_slam.kissicp import KissIcp
-from impala_slam.odometry import DistortionOdometry
-from impala_slam.posegraph import PoseGraph
-from impala_slam.registration import FmtRegistration
-from impala_slam.rslam import RSlam
-from impala_tracking.detector import MoverDetector
-from impala_tracking.tracker import Tracker
+from impala_radar.ego_velocity.component import EgoVelocity
+from impala_radar.extractor.component import PeakExtractor
+from impala_radar.pairer.component import FuzzyPairer
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.simulator.presets import IMPALA
+from impala_slam.ekf_slam.component import EkfSlam
+from impala_slam.fmt.component import FmtRegistration
+from impala_slam.kissicp.component import KissIcp
+from impala_slam.odometry.component import DistortionOdometry
+from impala_slam.posegraph.component import PoseGraph
+from impala_slam.rslam.component import RSlam
+from impala_tracking.detector.component import MoverDetector
+from impala_tracking.tracker.component import Tracker
 
 from .beams import CASES, SPEED_MPS, YAW_RATE_RADPS, corrupt, navtech_beams, truth_poses
 

@@ -21,8 +21,8 @@ import pytest
 from impala_flow.io import MissionReader
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import RadarBeam, RadarConfig
-from impala_slam.distortion import doppler_beta_s
-from impala_slam.odometry import DistortionOdometry
+from impala_slam.odometry.component import DistortionOdometry
+from impala_slam.odometry.distortion import doppler_beta_s
 
 ROOT = Path(__file__).resolve().parents[2]
 C = 299_792_458.0

@@ -21,10 +21,10 @@ from impala_flow.cli import main
 from impala_flow.io._reader import MissionReader
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
-from impala_slam.ekf_core import PoseEkf
-from impala_slam.ekf_slam import EkfSlam
-from impala_slam.fmt import FmtParams, prepare, register
-from impala_slam.posegraph import PoseGraph
+from impala_slam.ekf_slam.component import EkfSlam
+from impala_slam.ekf_slam.core import PoseEkf
+from impala_slam.fmt.core import FmtParams, prepare, register
+from impala_slam.posegraph.component import PoseGraph
 from impala_slam.se2 import between, compose
 from impala_slam.synthetic import SyntheticWorld
 
@@ -387,7 +387,7 @@ def test_ekf_registers_with_the_last_few_images():
 def test_pose_graph_fed_by_the_fmt_component_alone():
     """Any front end feeds slam.PoseGraph: here slam.FmtRegistration's transforms, no EKF.
     With only a chain of constraints the smoothed trajectory is the chained transforms."""
-    from impala_slam.registration import FmtRegistration
+    from impala_slam.fmt.component import FmtRegistration
 
     samples, truth = _arc_samples(with_pose=True)
     samples = [s for s in samples if s[1] == "image"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from impala_flow.msgs import Grid
-from impala_slam.rslam import RSlamConfig, RSlamCore
+from impala_slam.rslam.core import RSlamConfig, RSlamCore
 from impala_slam.tilemap import TileMap
 
 CELL = 0.2
@@ -59,7 +59,7 @@ def test_paper_normaliser_lets_a_place_seen_often_outweigh_a_transient(n_images)
 
 
 def test_the_component_takes_map_update():
-    from impala_slam.rslam import RSlam
+    from impala_slam.rslam.component import RSlam
 
     slam = RSlam("slam", map_update="paper")
     slam.start()

@@ -10,9 +10,13 @@ from impala_flow._component import Output, Source
 from impala_flow.msgs import Grid, Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import Speed, YawRate
-from impala_slam import DeadReckoning, MatchParams, RSlam, RSlamConfig, RSlamCore, TileMap, match_to_map
+from impala_slam.dead_reckoning.component import DeadReckoning
+from impala_slam.rslam.component import RSlam
+from impala_slam.rslam.core import RSlamConfig, RSlamCore
+from impala_slam.rslam.matching import MatchParams, match_to_map
 from impala_slam.se2 import between
 from impala_slam.synthetic import SyntheticWorld, synthetic_mission
+from impala_slam.tilemap import TileMap
 
 cv2.setNumThreads(1)
 

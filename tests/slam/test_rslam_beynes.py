@@ -16,10 +16,12 @@ import pytest
 
 from impala_flow.msgs import Grid
 from impala_flow.testing import CollectingSink, run_components
-from impala_radar.frontend.panoramic_builder import PanoramicBuilder
-from impala_radar.sources import Simulator
-from impala_slam import RSlamConfig, RSlamCore, TileMap, match_to_map
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.simulator.component import Simulator
+from impala_slam.rslam.core import RSlamConfig, RSlamCore
+from impala_slam.rslam.matching import match_to_map
 from impala_slam.se2 import between
+from impala_slam.tilemap import TileMap
 
 cv2.setNumThreads(1)
 TURNS = 7

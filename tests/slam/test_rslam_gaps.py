@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_slam import MatchParams, RSlamConfig, RSlamCore
+from impala_slam.rslam.core import RSlamConfig, RSlamCore
+from impala_slam.rslam.matching import MatchParams
 from impala_slam.se2 import between, compose, repeat
 from impala_slam.synthetic import SyntheticWorld
 

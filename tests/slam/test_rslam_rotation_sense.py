@@ -10,11 +10,11 @@ import pytest
 import yaml
 
 from impala_flow.testing import CollectingSink, run_components
-from impala_radar.frontend.panoramic_builder import PanoramicBuilder
-from impala_radar.frontend.speckle import SpeckleFilter
-from impala_radar.sim.scenario import scenario_path
-from impala_radar.sources import Simulator
-from impala_slam.rslam import RSlam
+from impala_radar.panoramic.component import PanoramicBuilder
+from impala_radar.simulator.component import Simulator
+from impala_radar.simulator.scenario import scenario_path
+from impala_radar.speckle.component import SpeckleFilter
+from impala_slam.rslam.component import RSlam
 
 cv2.setNumThreads(1)
 SECONDS = 8.5

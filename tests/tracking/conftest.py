@@ -14,7 +14,7 @@ import yaml
 from impala_flow._session import Session
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
-from impala_radar.sim.scenario import scenario_path
+from impala_radar.simulator.scenario import scenario_path
 
 GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "datmo.yaml"
 
@@ -40,7 +40,7 @@ def run_datmo(mission: Path, out: Path, overrides: tuple[str, ...] = ()) -> dict
 
 def read(path: Path, topic: str) -> list[tuple[int, object]]:
     from impala_flow.io import CodecRegistry
-    from impala_tracking import MoverDetections
+    from impala_tracking.types import MoverDetections
 
     codecs = CodecRegistry.with_standard_types()
     codecs.add_type(MoverDetections, plugin="tracking")

@@ -8,7 +8,8 @@ import numpy as np
 from impala_flow.msgs import Pose2D
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
 from impala_msgs import RadarDetections, Speed
-from impala_tracking.detector import MoverDetector, ground_radial_speed_mps
+from impala_tracking.detector.component import MoverDetector
+from impala_tracking.detector.core import ground_radial_speed_mps
 
 T_NS = 1_000_000_000
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from impala_flow.testing import CollectingSink, ScriptedSource, run_components
-from impala_tracking import MoverDetections
-from impala_tracking.tracker import Tracker, existence_update
+from impala_tracking.tracker.component import Tracker
+from impala_tracking.tracker.core import existence_update
+from impala_tracking.types import MoverDetections
 
 TURN_NS = 1_000_000_000
 

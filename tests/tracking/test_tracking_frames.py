@@ -10,7 +10,7 @@ import logging
 import numpy as np
 import pytest
 
-from impala_eval.tracking import TrackingEvaluator
+from impala_eval.tracking.component import TrackingEvaluator
 from impala_flow.msgs import Pose2D
 from impala_flow.testing import ScriptedSource, run_components
 from impala_msgs import ObjectStates, TrackExistence

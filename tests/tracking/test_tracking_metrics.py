@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from impala_eval.tracking import TrackingEvaluator
+from impala_eval.tracking.component import TrackingEvaluator
 from impala_flow.msgs import Pose2D
 from impala_flow.testing import ScriptedSource, run_components
 from impala_msgs import ObjectStates, TrackExistence

@@ -13,25 +13,3 @@ read is checked where it is read (Unix times, row times against the scan names, 
 fields within what a vehicle and the Earth allow, the turn rate against the Navtech's 4 Hz, the
 mission's span and clock steps back): no NaN or inf leaves a reader.
 """
-
-from __future__ import annotations
-
-from .common import DatasetError, ImportReport, NavtechDataset, iter_mission
-
-__all__ = ["DatasetError", "ImportReport", "NavtechDataset", "iter_mission", "open_dataset", "FORMATS"]
-
-#: dataset formats the ``import`` command and the sources read
-FORMATS = ("oxford", "boreas", "radiate")
-
-
-def open_dataset(fmt: str, folder: str, **options: object) -> NavtechDataset:
-    """The reader of format ``fmt`` (one of :data:`FORMATS`) on ``folder``."""
-    if fmt == "oxford":
-        from .oxford import OxfordDataset as cls
-    elif fmt == "boreas":
-        from .boreas import BoreasDataset as cls
-    elif fmt == "radiate":
-        from .radiate import RadiateDataset as cls
-    else:
-        raise ValueError(f"unknown dataset format {fmt!r} (known: {', '.join(FORMATS)})")
-    return cls(folder, **options)  # type: ignore[arg-type]

@@ -17,17 +17,22 @@ project's frame (x forward, y left, yaw counter-clockwise): y and yaw negated. T
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+import impala_msgs
 from impala_flow import msgs
 
 from .common import (
     MAX_SPEED_MPS,
     DatasetError,
     ImportReport,
+    counts_to_power,
+    iter_mission,
+    navtech_config,
     numbers,
     read_csv_columns,
     refuse_steps_back,
@@ -35,10 +40,11 @@ from .common import (
     unix_times_ns,
 )
 from .navtech_folder import NavtechPngDataset
+from .navtech_png import NavtechScan, ccw_azimuth
 
 __all__ = ["OXFORD_RANGE_RESOLUTION_M", "OXFORD_AZIMUTH_OFFSET_DEG", "OXFORD_README_RESOLUTION_M",
            "OxfordDataset", "OxfordRelativePoses", "read_oxford_ground_truth",
-           "compose_relative_poses"]
+           "compose_relative_poses", "NAVTECH_CTS350X", "scan_to_beams", "iter_oxford_folder"]
 
 OXFORD_README_RESOLUTION_M = 0.0432  # the dataset's documentation
 #: Range per bin, from the data: R-SLAM's along-track error of the 10 sample pairs against the
@@ -161,3 +167,34 @@ def compose_relative_poses(rel: OxfordRelativePoses,
     y = y0 + np.concatenate([[0.0], np.cumsum(s * rel.x_m + c * rel.y_m)])
     t = np.concatenate([rel.destination_t_ns[:1], rel.source_t_ns])
     return t, np.column_stack([x, y, msgs.wrap_angle(theta)])
+
+
+NAVTECH_CTS350X = navtech_config("navtech-cts350x-oxford", 3768, OXFORD_RANGE_RESOLUTION_M,
+                                 range_offset_m=0.5 * OXFORD_RANGE_RESOLUTION_M, beams_per_turn=400,
+                                 rotation_hz=4.0)
+"""Navtech CTS350-X of Oxford Radar RobotCar: 4 Hz, 400 beams, 3768 bins of 4.38 cm (measured,
+see :data:`~impala_radar.datasets.oxford.OXFORD_RANGE_RESOLUTION_M`), bin k at its centre. (An
+import measures the rotation rate on the data instead.)"""
+
+
+def scan_to_beams(scan: NavtechScan, turn: int, config: impala_msgs.RadarConfig = NAVTECH_CTS350X,
+                  azimuth_offset_deg: float = 0.0,
+                  db_per_count: float = 0.5) -> list[tuple[int, impala_msgs.RadarBeam]]:
+    """Valid rows of ``scan`` as ``(t_ns, RadarBeam)`` in acquisition order (linear power in
+    ``up``, :func:`~impala_radar.datasets.common.counts_to_power`; ``down`` empty), azimuth
+    ``wrap(-a + radians(azimuth_offset_deg))``."""
+    empty = np.zeros(0, dtype=np.float32)
+    azimuth = ccw_azimuth(scan.azimuth_rad, azimuth_offset_deg)
+    power = counts_to_power(scan.power, db_per_count)
+    return [(int(scan.timestamps_ns[i]),
+             impala_msgs.RadarBeam(float(azimuth[i]), int(turn), i, power[i], empty, config))
+            for i in np.flatnonzero(scan.valid).tolist()]
+
+
+def iter_oxford_folder(folder: str | Path, **options: float,
+                       ) -> Iterator[tuple[int, str, impala_msgs.RadarBeam | msgs.Pose2D]]:
+    """``(t_ns, "beams" | "truth", message)`` in time order for an Oxford folder
+    (``radar/<us>.png``, optional ``gt/radar_odometry.csv``): every valid beam, and the truth
+    poses in frame ``odom`` (identity at the scan before the first one, stamped at the middle
+    of each scan). ``options``: :class:`~impala_radar.datasets.oxford.OxfordDataset` parameters."""
+    yield from iter_mission(OxfordDataset(folder, **options))

@@ -1,1 +1,0 @@
-"""Radar simulator: vehicle trajectories, proprioceptive sensors, worlds."""

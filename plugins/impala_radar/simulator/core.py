@@ -1,0 +1,401 @@
+"""Streaming mission simulation: radar beams, truth of movers, proprioceptive sensors.
+
+:func:`simulate` yields ``(t_ns, port, msg)`` in non-decreasing time order, merging with
+``heapq.merge``: ``"beams"`` -> :class:`~impala_flow.msgs.RadarBeam`, ``"movers"`` ->
+:class:`~impala_flow.msgs.ObjectStates` (10 Hz), and one port per proprioceptive sensor
+(``"odometer"``, ``"gyro"``, ``"gps"`` from :mod:`impala_radar.simulator.sensors`). At most one
+antenna turn is held in memory.
+
+Beam timing: beam ``j`` of turn ``k`` is acquired during one modulation period centred at
+``t = start + (k B + j + 1/2) / (B f_rot)`` (integer ns) with the antenna at
+``azimuth = 2 pi (j + 1/2) / B`` in the vehicle frame (counter-clockwise rotation, 0 =
+heading; ``RadarParams.clockwise`` and ``start_azimuth_rad`` give a clockwise antenna, like
+the Navtech's, and a turn that starts anywhere). Each beam is computed at the vehicle pose
+and velocity of its own time, so a moving radar sees the scene distorted (a straight wall becomes a trochoid) and every
+static echo carries the vehicle's Doppler V = -v . u (u the line of sight).
+
+Work per turn (vectorised; :mod:`impala_radar.simulator.spectra` for the equations): the static
+scatterers within reach of the turn's poses are fetched once (k-d tree), clutter tiles near
+the radar split for developed speckle, vegetation jittered, facade mirror images added
+(:mod:`.clutter`, :mod:`.receiver`); each scatterer gets the azimuth window where its echo
+can still matter (:mod:`.antenna`); a polar map of the shadowing discs (trunks, crowns,
+parked cars, movers swept over the turn) marks what may be shadowed; the turn is cut
+into blocks of 8 beams; per block the scatterers whose bearing can fall inside the beams'
+pattern are selected (bearing from the turn centre, widened by the pose spread), their
+occlusion (walls; discs on the marked ones) is tested at the block's middle pose (8 beams =
+22 ms of motion), and their
+echoes are evaluated densely over (block beams x scatterers). Movers are evaluated over
+the whole turn at every beam time, occlusion included (walls and static discs). With the
+transmitter leakage echoes, all echoes of the turn then go through one
+:class:`~impala_radar.simulator.spectra.Synthesizer` call.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Iterator, Mapping
+from operator import itemgetter
+
+import numpy as np
+
+from impala_flow.msgs import wrap_angle as _wrap
+from impala_msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig
+
+from .clutter import grazing_factor, hash_uniform, split_tiles, vegetation_jitter
+from .receiver import adc_counts, leakage_echoes, mirror_images
+from .spectra import Echoes, RadarParams, Synthesizer, azimuth_pattern, echoes, received_power_w
+from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
+
+DEFAULT_PARAMS = RadarParams()
+
+__all__ = ["simulate", "RadarSimulator", "beam_times_ns", "beam_azimuths_rad"]
+
+
+def beam_times_ns(start_t_ns: int, turn: int, config: RadarConfig) -> np.ndarray:
+    """Acquisition times (int64 ns) of the beams of ``turn`` (centre of each period)."""
+    n = config.beams_per_turn
+    k = turn * n + np.arange(n) + 0.5
+    return int(start_t_ns) + np.rint(k * (1e9 / (config.rotation_hz * n))).astype(np.int64)
+
+
+def beam_azimuths_rad(config: RadarConfig, params: RadarParams = DEFAULT_PARAMS) -> np.ndarray:
+    """Antenna azimuth of each beam in the vehicle frame (CCW from the heading, in [0, 2 pi)):
+    beam j is centred half a step after ``params.start_azimuth_rad`` + j steps, the steps
+    counter-clockwise, or clockwise with ``params.clockwise``."""
+    step = 2.0 * np.pi / config.beams_per_turn * (-1.0 if params.clockwise else 1.0)
+    return np.mod(params.start_azimuth_rad + step * (np.arange(config.beams_per_turn) + 0.5), 2.0 * np.pi)
+
+
+_POLAR_BIN_RAD = math.radians(0.5)
+
+
+def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
+    """Scatterers that a disc may shadow during the turn: on a polar map around the turn
+    centre (bins of ``bin_rad``), each bin keeps the nearest distance of the discs covering
+    it (widened by the pose spread); discs above the radar only count for scatterers above
+    the radar. The exact test (:func:`disc_transmission`) runs on these only."""
+    n_bins = int(round(2 * np.pi / bin_rad))
+    dx, dy = discs[:, 0] - center[0], discs[:, 1] - center[1]
+    dist = np.hypot(dx, dy)
+    reach = discs[:, 2] + spread
+    inside = dist <= reach
+    wide = np.where(inside, np.pi, np.arcsin(np.minimum(1.0, reach / np.maximum(dist, 1e-9))))
+    near_edge = np.where(inside, 0.0, dist - reach)
+    b0 = np.floor((np.arctan2(dy, dx) - wide + np.pi) / bin_rad).astype(np.intp)
+    span = np.minimum(np.ceil(2 * wide / bin_rad).astype(np.intp) + 1, n_bins)
+    rows = np.repeat(np.arange(len(discs)), span)
+    cols = (np.repeat(b0, span) + np.arange(int(span.sum())) - np.repeat(np.cumsum(span) - span, span)) % n_bins
+    out = np.zeros(len(rc), bool)
+    b = np.minimum(((bearing + np.pi) / bin_rad).astype(np.intp), n_bins - 1)
+    for high in (False, True):
+        sel = (discs[rows, 3] > radar_z_m) == high
+        first = np.full(n_bins, np.inf)
+        np.minimum.at(first, cols[sel], near_edge[rows[sel]])
+        hit = rc > first[b]
+        out |= (hit & (sz > radar_z_m)) if high else hit
+    return out
+
+
+def _bearing_window(idx, sorted_bearing, mid, half):
+    """Entries of ``idx`` whose bearing (sorted, in [-pi, pi)) is within ``half`` of ``mid``."""
+    if half >= np.pi:
+        return idx
+    lo, hi = mid - half, mid + half
+    parts = [(max(lo, -np.pi), min(hi, np.pi))]
+    if lo < -np.pi:
+        parts.append((lo + 2 * np.pi, np.pi))
+    if hi > np.pi:
+        parts.append((-np.pi, hi - 2 * np.pi))
+    return np.concatenate([idx[np.searchsorted(sorted_bearing, a):
+                               np.searchsorted(sorted_bearing, b, side="right")]
+                           for a, b in parts])
+
+
+class RadarSimulator:
+    """Computes the up/down spectra of whole turns of a rotating radar in a :class:`World`."""
+
+    def __init__(self, world: World, config: RadarConfig, params: RadarParams = DEFAULT_PARAMS,
+                 block_beams: int = 8) -> None:
+        self.world, self.config, self.params = world, config, params
+        self.synth = Synthesizer(config, params)
+        self.block_beams = block_beams
+        self.azimuth_rad = beam_azimuths_rad(config, params)
+        self._k_range = 4.0 * config.bandwidth_hz * config.modulation_hz / SPEED_OF_LIGHT_MPS
+        self._cut_rad = params.cut_azimuth_rad(config)
+        self._pattern = azimuth_pattern(config.beam_width_rad, params.sidelobe_db)
+        self._veg = np.isin(world.kind, VEGETATION_KINDS)
+
+    def range_limit_m(self, closing_mps: float) -> float:
+        """Largest range whose beat frequency can fall below fs/2 (eq. 2)."""
+        f_d = 2.0 * closing_mps * self.config.f0_hz / SPEED_OF_LIGHT_MPS * self.synth.doppler_factor
+        return (0.5 * self.synth.fs_hz + f_d) / self._k_range
+
+    def turn(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator):
+        """(up, down) spectra (B, n_bins) float32 of the beams acquired at ``t_ns``."""
+        pose = trajectory.pose(t_ns)
+        speed, _ = trajectory.velocity(t_ns)
+        radar_xy = np.ascontiguousarray(pose[:, :2])
+        radar_vxy = speed[:, None] * np.column_stack([np.cos(pose[:, 2]), np.sin(pose[:, 2])])
+        beam_dir = pose[:, 2] + self.azimuth_rad[: len(t_ns)]
+        center = radar_xy.mean(axis=0)
+        spread = float(np.max(np.hypot(*(radar_xy - center).T)))
+        r_lim = self.range_limit_m(float(np.max(np.abs(speed))))
+        segs = self.world.segments_near(center, r_lim + spread)
+        discs = self.world.discs_near(center, r_lim + spread) if self.params.shadows else np.zeros((0, 6))
+        parts = [self._static(radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs,
+                              t_ns, rng)]
+        if self.world.movers:
+            parts.append(self._movers(t_ns, radar_xy, radar_vxy, beam_dir, segs, discs))
+        if self.params.leakage_dbm is not None:
+            p_w = 10.0 ** (self.params.leakage_dbm / 10.0) * 1e-3
+            parts.append(Echoes(*leakage_echoes(len(t_ns), p_w, self.params.leakage_range_m)))
+        return self.synth.spectra(Echoes.concat(parts), len(t_ns), rng)
+
+    def _windows(self, rc, sz, rcs, area):
+        """Azimuth half-window per scatterer (:mod:`.antenna`): where its echo can still
+        reach the culling level, from its boresight power at the turn centre's distance."""
+        p = self.params
+        floor = 10.0 ** (-p.pattern_cut_db / 10.0)
+        if not p.thermal_noise:
+            return np.full(len(rc), self._cut_rad)
+        dz = sz - self.config.height_m
+        r = np.sqrt(rc * rc + dz * dz)
+        g_el = np.exp(-8.0 * math.log(2.0) * (np.arctan2(dz, rc) / p.elevation_beam_width_rad) ** 2)
+        p0 = received_power_w(r, rcs * grazing_factor(r, dz, area, p.grazing_ref_deg), g_el,
+                              self.config, p)
+        with np.errstate(divide="ignore"):
+            level = np.maximum(self.synth.noise_per_bin_w * 10.0 ** (-p.window_below_noise_db / 10.0) / p0,
+                               floor)
+        # distributed clutter: main lobe only (its sidelobe returns are the pattern's
+        # integrated sidelobe ratio, about -40 dB, of its main-lobe return)
+        level = np.where(area > 0, np.maximum(level, 10.0 ** (-p.clutter_cut_db / 10.0)), level)
+        return np.minimum(self._pattern.window_rad(level), self._cut_rad)
+
+    def _scene(self, idx, center, rng):
+        """Static scatterers of a turn: the world's, clutter tiles split for developed
+        speckle, vegetation jitter and facade mirror images (:mod:`.clutter`, :mod:`.receiver`)."""
+        w, p = self.world, self.params
+        sx, sy, sz = w.x_m[idx], w.y_m[idx], w.z_m[idx]
+        rcs, phase, area = w.rcs_m2[idx], w.phase_rad[idx], w.area_m2[idx]
+        veg = self._veg[idx]
+        if veg.any() and (p.vegetation_motion_m > 0 or p.vegetation_rcs_jitter_db > 0):
+            d_phase, factor = vegetation_jitter(int(veg.sum()), rng, self.synth.lambda_m,
+                                                p.vegetation_motion_m, p.vegetation_rcs_jitter_db)
+            phase, rcs = phase.copy(), rcs.copy()
+            phase[veg] += d_phase
+            rcs[veg] *= factor
+        ghost = np.zeros(len(idx), bool)
+        tile = area > 0  # clutter tiles: exponential RCS around the tile's mean (hashed)
+        if tile.any():
+            rcs = rcs.copy()
+            rcs[tile] *= -np.log1p(-hash_uniform(idx[tile].astype(np.uint64), 7))
+        if p.speckle_range_m > 0:
+            near = np.nonzero((area > 0) & (np.hypot(sx - center[0], sy - center[1]) < p.speckle_range_m))[0]
+            if near.size:
+                dist = np.hypot(w.tile_x_m[idx[near]] - center[0], w.tile_y_m[idx[near]] - center[1])
+                parent, x, y, r_sub, ph_sub, split = split_tiles(
+                    idx[near], w.tile_x_m[idx[near]], w.tile_y_m[idx[near]], area[near], w.rcs_m2[idx[near]],
+                    dist, self.config.range_resolution_m, self.config.beam_width_rad, p.speckle_max_split)
+                if split.any():
+                    keep = np.ones(len(idx), bool)
+                    keep[near[split]] = False
+                    par = near[parent]
+                    q2 = np.bincount(parent, minlength=len(near))[parent]
+                    sx, sy = np.concatenate([sx[keep], x]), np.concatenate([sy[keep], y])
+                    sz = np.concatenate([sz[keep], sz[par]])
+                    area = np.concatenate([area[keep], area[par] / q2])
+                    rcs, phase = np.concatenate([rcs[keep], r_sub]), np.concatenate([phase[keep], ph_sub])
+                    ghost = np.zeros(len(sx), bool)
+        if p.multipath_reflection_db is not None and len(self._segs):
+            par, gx, gy = mirror_images(sx, sy, rcs, center, self._segs, p.multipath_min_rcs_m2)
+            if par.size:
+                gamma2 = 10.0 ** (2.0 * p.multipath_reflection_db / 10.0)
+                sx, sy = np.concatenate([sx, gx]), np.concatenate([sy, gy])
+                sz, area = np.concatenate([sz, sz[par]]), np.concatenate([area, np.zeros(par.size)])
+                rcs, phase = np.concatenate([rcs, rcs[par] * gamma2]), np.concatenate([phase, phase[par]])
+                ghost = np.concatenate([ghost, np.ones(par.size, bool)])
+        return sx, sy, sz, rcs, phase, area, ghost
+
+    def _static(self, radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs, t_ns,
+                rng) -> Echoes:
+        w = self.world
+        idx = w.query(center, r_lim + spread)
+        if idx.size == 0:
+            return Echoes.concat([])
+        self._segs = segs
+        sx, sy, sz, rcs, phase, area, ghost = self._scene(idx, center, rng)
+        dxc, dyc = sx - center[0], sy - center[1]
+        bearing = np.arctan2(dyc, dxc)  # from the turn centre
+        rc = np.hypot(dxc, dyc)
+        window = self._windows(rc, sz, rcs, area)
+        live = window > 0.0
+        if not live.all():
+            sx, sy, sz, rcs, phase, area, ghost, bearing, rc, window = (
+                a[live] for a in (sx, sy, sz, rcs, phase, area, ghost, bearing, rc, window))
+        behind = None
+        swept = np.concatenate([discs, self._swept_mover_discs(t_ns)]) if self.params.shadows else discs
+        if len(swept):  # shadows: prefilter on a polar map, exact test per block
+            behind = _maybe_behind(swept, center, spread, bearing, rc, sz, self.config.height_m) & ~ghost
+        slack = window + np.arcsin(np.minimum(1.0, spread / np.maximum(rc, 1e-9)))
+        slack[rc <= spread] = np.pi  # the radar passes around it during the turn
+        # far scatterers sorted by bearing (window look-up); near ones tested every block
+        r_near = max(3.0, spread / math.sin(math.radians(5.0)))
+        near = np.nonzero(rc <= r_near)[0]
+        far = np.nonzero(rc > r_near)[0]
+        far = far[np.argsort(bearing[far], kind="stable")]
+        far_bearing = bearing[far]
+        far_slack = (float(window[far].max()) if far.size else 0.0) + math.asin(min(1.0, spread / r_near))
+        parts = []
+        n = len(beam_dir)
+        for b0 in range(0, n, self.block_beams):
+            sl = slice(b0, min(n, b0 + self.block_beams))
+            d = np.unwrap(beam_dir[sl])
+            mid, half = _wrap(0.5 * (d[0] + d[-1])), 0.5 * abs(d[-1] - d[0])
+            j = np.concatenate([_bearing_window(far, far_bearing, mid, half + far_slack), near])
+            j = j[np.abs(_wrap(bearing[j] - mid)) <= half + slack[j]]
+            if j.size == 0:
+                continue
+            vis = None
+            pos = radar_xy[(sl.start + sl.stop - 1) // 2]
+            if len(segs):
+                vis = w.visible(pos, sx[j], sy[j], segs) | ghost[j]
+            occ = self._block_discs(discs, pos, mid, half + self._cut_rad, t_ns[(sl.start + sl.stop - 1) // 2])
+            if len(occ):
+                cand = behind[j] if behind is not None else np.ones(len(j), bool)
+                if cand.any():
+                    tr = np.ones(len(j))
+                    jc = j[cand]
+                    tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
+                    vis = tr if vis is None else tr * vis
+            parts.append(echoes(np.arange(sl.start, sl.stop), radar_xy[sl], radar_vxy[sl],
+                                beam_dir[sl], np.column_stack([sx[j], sy[j]]), sz[j], None,
+                                rcs[j], phase[j], self.config, self.params, visible=vis,
+                                range_limit_m=r_lim, cut_rad=window[j], area_m2=area[j]))
+        return Echoes.concat(parts)
+
+    def _swept_mover_discs(self, t_ns, n_samples: int = 9):
+        """The movers' discs at ``n_samples`` times of the turn, widened by the motion between."""
+        out = [np.zeros((0, 6))]
+        ts = np.linspace(int(t_ns[0]), int(t_ns[-1]), n_samples).astype(np.int64)
+        for m in self.world.movers:
+            xy, _, h, on = m.state(ts)
+            if on.any():
+                d = car_discs(xy[on, 0], xy[on, 1], h[on])
+                d[:, 2] += 0.5 * m.speed_mps * (ts[1] - ts[0]) * 1e-9 if n_samples > 1 else 0.0
+                out.append(d)
+        return np.concatenate(out)
+
+    def _block_discs(self, discs, pos, mid, half, t_ns):
+        """The shadowing discs (static and movers' at ``t_ns``) within a block's sector."""
+        if not self.params.shadows:
+            return discs
+        if self.world.movers:
+            st = [m.state(t_ns) for m in self.world.movers]
+            on = [s for s in st if bool(s[3])]
+            if on:
+                discs = np.concatenate([discs, car_discs([s[0][0] for s in on], [s[0][1] for s in on],
+                                                         [s[2] for s in on])])
+        if len(discs) == 0:
+            return discs
+        dx, dy = discs[:, 0] - pos[0], discs[:, 1] - pos[1]
+        dist = np.hypot(dx, dy)
+        wide = np.arcsin(np.minimum(1.0, discs[:, 2] / np.maximum(dist, 1e-9)))
+        return discs[np.abs(_wrap(np.arctan2(dy, dx) - mid)) <= half + wide]
+
+    def _movers(self, t_ns, radar_xy, radar_vxy, beam_dir, segs, discs) -> Echoes:
+        movers = self.world.movers
+        states = [m.scatterers(t_ns) for m in movers]
+        xy = np.concatenate([s[0] for s in states], axis=1)  # (B, K, 2)
+        vxy = np.concatenate([s[1] for s in states], axis=1)
+        active = np.concatenate([np.repeat(s[2][:, None], len(m.rcs_m2), axis=1)
+                                 for s, m in zip(states, movers, strict=True)], axis=1)
+        if not active.any():
+            return Echoes.concat([])
+        z = np.concatenate([m.body_xyz_m[:, 2] for m in movers])
+        rcs = np.concatenate([m.rcs_m2 for m in movers])
+        phase = np.concatenate([m.phase_rad for m in movers])
+        vis = active
+        if len(segs):
+            vis = active & self.world.visible(radar_xy[:, None, :], xy[..., 0], xy[..., 1], segs)
+        if len(discs) and self.params.shadows:
+            vis = vis * disc_transmission(radar_xy[:, None, :], self.config.height_m, xy[..., 0],
+                                          xy[..., 1], np.broadcast_to(z, xy.shape[:2]), discs)
+        closing = np.hypot(vxy[..., 0], vxy[..., 1]).max() + np.hypot(*radar_vxy.T).max()
+        r_lim = self.range_limit_m(float(closing))
+        return echoes(np.arange(len(t_ns)), radar_xy, radar_vxy, beam_dir, xy, z, vxy, rcs,
+                      phase, self.config, self.params, visible=vis, range_limit_m=r_lim)
+
+
+def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
+                 rng: np.random.Generator) -> Iterator[tuple[int, str, RadarBeam]]:
+    config = sim.config
+    p = sim.params
+    adc = None
+    if p.adc_db_per_count is not None:
+        noise_w = sim.synth.noise_per_bin_w
+
+        def adc(x: np.ndarray) -> np.ndarray:
+            return adc_counts(x, noise_w, p.adc_db_per_count, p.adc_zero_db, p.adc_max_count)
+
+    turn = 0
+    while True:
+        t_ns = beam_times_ns(start, turn, config)
+        n = int(np.searchsorted(t_ns, end))  # beams acquired before the end
+        if n == 0:
+            return
+        up, down = sim.turn(trajectory, t_ns[:n], rng)
+        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
+            up = adc(up)
+            down = adc(down) if np.size(down) else down
+        for j in range(n):
+            yield int(t_ns[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), turn, j, up[j],
+                                                   down[j], config)
+        turn += 1
+
+
+def _mover_stream(world: World, start: int, end: int,
+                  rate_hz: float) -> Iterator[tuple[int, str, ObjectStates]]:
+    period = int(round(1e9 / rate_hz))
+    ids = np.array([m.id for m in world.movers], np.int64)
+    for t in range(start, end, period):
+        st = [m.state(t) for m in world.movers]
+        on = np.array([bool(s[3]) for s in st], bool)
+        xy = np.array([s[0] for s in st], float).reshape(-1, 2)[on]
+        v = np.array([s[1] for s in st], float).reshape(-1, 2)[on]
+        yield t, "movers", ObjectStates(ids[on], xy, v, np.zeros((int(on.sum()), 4, 4)))
+
+
+def _sensor_stream(name: str, sensor, trajectory, rng, start: int, end: int):
+    for t, msg in sensor.samples(trajectory, rng, start, end):
+        yield int(t), name, msg
+
+
+def simulate(world: World, trajectory, config: RadarConfig, rng: np.random.Generator,
+             start_t_ns: int | None = None, duration_ns: int | None = None,
+             sensors: Mapping[str, object] | None = None, *,
+             params: RadarParams = DEFAULT_PARAMS,
+             movers_rate_hz: float = 10.0) -> Iterator[tuple[int, str, object]]:
+    """Yield ``(t_ns, port, msg)`` of a simulated acquisition, in non-decreasing time.
+
+    ``trajectory`` has ``pose(t_ns)``, ``velocity(t_ns)``, ``start_ns``, ``end_ns``
+    (:class:`impala_radar.simulator.vehicle.Trajectory`). The run covers ``[start_t_ns,
+    start_t_ns + duration_ns)`` clipped to the trajectory's end. ``sensors`` maps a port name
+    to an object with ``samples(trajectory, rng, start_ns, end_ns)``. ``rng`` is split
+    (``Generator.spawn``) into independent streams for the radar's thermal noise and each
+    sensor, so adding a sensor does not change the radar's noise.
+    """
+    start = trajectory.start_ns if start_t_ns is None else int(start_t_ns)
+    end = int(trajectory.end_ns)
+    if duration_ns is not None:
+        end = min(end, start + int(duration_ns))
+    sensors = dict(sensors or {})
+    radar_rng, *sensor_rngs = rng.spawn(1 + len(sensors))
+    sim = RadarSimulator(world, config, params)
+    streams = [_beam_stream(sim, trajectory, start, end, radar_rng)]
+    if world.movers:
+        streams.append(_mover_stream(world, start, end, movers_rate_hz))
+    for (name, sensor), r in zip(sorted(sensors.items()), sensor_rngs, strict=True):
+        streams.append(_sensor_stream(name, sensor, trajectory, r, start, end))
+    return heapq.merge(*streams, key=itemgetter(0))
+
