@@ -25,9 +25,8 @@ from impala_flow.testing import CollectingSink, plugin_of
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["importlinter"]
 
-#: circles another branch of issue 25 removes (the sweep leaves the engine for its plugin);
-#: delete the entry when it has landed
-PENDING_CIRCLES = {frozenset({"impala_flow.sweep.folder", "impala_flow.sweep.runner", "impala_flow.sweep.task"})}
+#: circles allowed to remain: none
+PENDING_CIRCLES: set[frozenset[str]] = set()
 
 
 def import_circles() -> list[set[str]]:
