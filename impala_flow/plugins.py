@@ -19,6 +19,7 @@ Two plugins claiming one name remain an error of the installation
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
 from importlib.metadata import Distribution
@@ -31,13 +32,30 @@ from . import hookspecs
 from ._extras import install_line, missing_module
 from ._registry import BrokenPlugin, MissionSource, NameConflictError, PluginInfo, Registry
 from .hookspecs import PROJECT, hookimpl
+from .io import set_plugin_loader
 
 __all__ = ["hookimpl", "Registry", "MissionSource", "NameConflictError", "make_plugin_manager", "load_registry",
-           "DISABLE_ENV", "PluginManager", "warn_broken", "add_commands"]
+           "DISABLE_ENV", "PluginManager", "warn_broken", "add_commands", "require"]
 
 DISABLE_ENV = "IMPALA_FLOW_DISABLE_PLUGINS"
 
 log = logging.getLogger("impala_flow.plugins")
+
+
+def require(*modules: str) -> None:
+    """Raise ``ModuleNotFoundError`` naming the first of ``modules`` (top-level import names, e.g.
+    ``"cv2"``, ``"gtsam"``; a dotted name imports its parent package) that is not installed.
+    A plugin calls it first in its hooks with the libraries of its extra, so that without them
+    it is listed as broken with the ``pip install`` line that brings them, instead of loading
+    and failing later in a graph. Nothing is imported (:func:`importlib.util.find_spec`), so
+    the check costs microseconds."""
+    for m in modules:
+        try:
+            found = importlib.util.find_spec(m) is not None
+        except ModuleNotFoundError as e:  # a dotted name whose parent package is missing: name the parent
+            m, found = e.name or m, False
+        if not found:
+            raise ModuleNotFoundError(f"No module named '{m}'", name=m)
 
 
 def _one_line(e: BaseException) -> str:
@@ -70,7 +88,7 @@ class PluginManager(pluggy.PluginManager):
 def make_plugin_manager(extra: dict[str, Any] | None = None, entrypoints: bool = True) -> PluginManager:
     """A fresh manager with the engine's own components, the installed plugins (minus the
     blocked) and ``extra`` ones."""
-    from . import __version__
+    from ._version import __version__
 
     pm = PluginManager()
     pm.add_hookspecs(hookspecs)
@@ -162,3 +180,8 @@ def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None 
             reg._current = None
     reg.plugin_manager = pm  # type: ignore[attr-defined]
     return reg
+
+
+# a recorder or replayer wired by hand (no graph, so no registry of its run) records with the
+# installed plugins' types and mirrors, loaded here: io sits below this module and never imports it
+set_plugin_loader(load_registry)

@@ -25,11 +25,9 @@ MESSAGES = PROJECT["entry-points"]["impala_flow.messages"]  # message packages: 
 OURS = {"impala_flow"} | {v.split(".")[0].split(":")[0] for v in [*PLUGINS.values(), *MESSAGES.values()]}
 
 #: engine imports outside the core, each inside the one function that needs it: module -> extra
-ENGINE_OPTIONAL = {"matplotlib": "plot", "pytest": "test",
-                   # until the sweep and the Foxglove mirrors leave the engine for their plugins (issue 25)
-                   "dask": "sweep", "distributed": "sweep", "foxglove_schemas_protobuf": "view", "google": "view"}
-#: engine modules importing an optional library at their top, until they move to their plugin (issue 25)
-ENGINE_TOP_LEVEL_PENDING = {"impala_flow/io/_foxglove.py"}
+ENGINE_OPTIONAL = {"matplotlib": "plot", "pytest": "test"}
+#: engine modules allowed to import an optional library at their top: none
+ENGINE_TOP_LEVEL_PENDING: set[str] = set()
 #: the peer baselines (slam.KissIcp) come with the `peers` extra, imported by their component only
 PEERS = "peers"
 

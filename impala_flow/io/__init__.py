@@ -31,7 +31,7 @@ from ._reader import ChannelInfo, Loss, MissionReader, Recorded, RecordingInfo
 from ._recorder import VEHICLE_POSES, Recorder
 from ._registry import CodecRegistry
 from ._replayer import TIME_JUMP, Replayer
-from ._runcodecs import run_codecs
+from ._runcodecs import run_codecs, set_plugin_loader
 from ._writer import COMPRESSIONS, MissionWriter
 
 __all__ = [
@@ -41,5 +41,5 @@ __all__ = [
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
-    "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs",
+    "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs", "set_plugin_loader",
 ]

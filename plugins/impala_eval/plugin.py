@@ -12,11 +12,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from impala_flow.plugins import hookimpl
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[eval]'), checked before any hook runs
+REQUIRES = ("matplotlib", "motmetrics")
 
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
     from .comparison.component import TrajectoryComparison
     from .evaluator.component import TrajectoryEvaluator
     from .tracking.component import TrackingEvaluator
@@ -28,6 +32,7 @@ def impala_flow_register(registry: Any) -> None:
 
 @hookimpl
 def impala_flow_add_commands(subparsers: Any) -> None:
+    require(*REQUIRES)
     from .demo import add_demo_command
 
     add_demo_command(subparsers)

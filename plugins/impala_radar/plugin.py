@@ -13,11 +13,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from impala_flow.plugins import hookimpl
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[radar]'), checked before any hook runs
+REQUIRES = ("scipy", "cv2", "PIL", "matplotlib")
 
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
     from .datasets.component import BoreasScans, OxfordScans, RadiateScans
     from .simulator.component import Simulator
 
@@ -51,6 +55,7 @@ def _simulate_mission(session: Any, scenario: str, path: str, *, seed: int | Non
 
 @hookimpl
 def impala_flow_add_commands(subparsers: Any) -> None:
+    require(*REQUIRES)
     from .commands import add_commands
 
     add_commands(subparsers)

@@ -12,11 +12,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from impala_flow.plugins import hookimpl
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[slam]'), checked before any hook runs
+REQUIRES = ("scipy", "cv2", "filterpy", "gtsam")
 
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
     from .dead_reckoning.component import DeadReckoning
     from .ekf_slam.component import EkfSlam
     from .fmt.component import FmtRegistration

@@ -12,11 +12,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from impala_flow.plugins import hookimpl
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[tracking]'), checked before any hook runs
+REQUIRES = ("scipy", "filterpy")
 
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
     from .detector.component import MoverDetector
     from .tracker.component import Tracker
     from .types import MoverDetections

@@ -13,7 +13,10 @@ from typing import Any
 import impala_msgs
 from impala_flow import msgs
 from impala_flow.io import TRANSFORMS, Mirror
-from impala_flow.plugins import hookimpl
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[view]'), checked before any hook runs
+REQUIRES = ("foxglove", "foxglove_schemas_protobuf")  # the latter brings protobuf
 
 __all__ = ["MIRRORED"]
 
@@ -42,6 +45,7 @@ def _tf_mirror(key: Any) -> Mirror:
 
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
     from .bridge import FoxgloveBridge
 
     registry.add_component(FoxgloveBridge)
@@ -53,6 +57,7 @@ def impala_flow_register(registry: Any) -> None:
 
 @hookimpl
 def impala_flow_add_commands(subparsers: Any) -> None:
+    require(*REQUIRES)
     from .commands import add_commands
 
     add_commands(subparsers)

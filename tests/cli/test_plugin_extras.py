@@ -34,6 +34,16 @@ def impala_flow_register(registry):
 """
 #: fails at import (the plugin module imports the library at its top)
 IMPORTS_EARLY = f"import {LIB}\n"
+#: declares its extra's libraries up front with impala_flow.plugins.require (as the built-in plugins do):
+#: its components would import the library only when a graph runs them
+REQUIRES_UP_FRONT = f"""\
+from impala_flow.plugins import hookimpl, require
+
+
+@hookimpl
+def impala_flow_register(registry):
+    require("json", "{LIB}.core")
+"""
 
 USES_CHAIN = """\
 name: needs-chain
@@ -47,10 +57,10 @@ connections:
 LINE = "pip install 'impala-chain[chain]'"
 
 
-@pytest.fixture(params=["register", "import"])
+@pytest.fixture(params=["register", "import", "require"])
 def with_chain(request: pytest.FixtureRequest, installed: Installed) -> Installed:
-    """clitest plus 'chain', whose library is missing (at registration or at import)."""
-    code = REGISTERS_LATE if request.param == "register" else IMPORTS_EARLY
+    """clitest plus 'chain', whose library is missing (at registration, at import, or declared by require)."""
+    code = {"register": REGISTERS_LATE, "import": IMPORTS_EARLY, "require": REQUIRES_UP_FRONT}[request.param]
     (installed.site / "chain_plugin.py").write_text(code, encoding="utf-8")
     installed.add("impala-chain", "1.2", {"chain": "chain_plugin"}, CHAIN_META)
     return installed

@@ -69,7 +69,7 @@ def test_layers_contract_places_every_engine_module():
     placed = set().union(*_engine_layers())
     engine = ROOT / "impala_flow"
     modules = {p.stem for p in engine.glob("_*.py") if p.stem not in ("__init__", "__main__")}
-    modules |= {"cli", "testing", "plugins", "hookspecs", "msgs"}
+    modules |= {"cli", "testing", "plugins", "hookspecs", "msgs", "io"}
     assert sorted(modules - placed) == []
 
 
