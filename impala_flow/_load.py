@@ -63,8 +63,8 @@ from ._yamlloc import (
     LocDict,
     LocList,
     YamlError,
-    _decode,
     brief,
+    decode_text,
     load_value,
     load_yaml,
     read_bounded,
@@ -280,7 +280,7 @@ def read_graph(path: str | Path, overrides: Iterable[str] = (), variables: dict[
         spec.source_text = text
     else:
         try:  # read again, bounded: the file could have been swapped since
-            spec.source_text = _decode(str(path), read_bounded(path, MAX_BYTES))
+            spec.source_text = decode_text(str(path), read_bounded(path, MAX_BYTES))
         except YamlError:
             spec.source_text = ""
     docs = chain + [(doc, path)]

@@ -23,7 +23,7 @@ from typing import Any
 import yaml
 
 __all__ = ["Loc", "LocDict", "LocList", "location", "load_yaml", "load_value", "YamlError", "Loader",
-           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "shown", "brief", "read_bounded"]
+           "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "shown", "brief", "read_bounded", "decode_text"]
 
 #: largest graph file read (bytes): a graph is a few kB; this keeps validation under a second
 MAX_BYTES = 64 << 10
@@ -333,7 +333,8 @@ def _convert(loader: Loader, node: yaml.Node, file: str, memo: dict[int, Any]) -
     return out
 
 
-def _decode(file: str, data: bytes) -> str:
+def decode_text(file: str, data: bytes) -> str:
+    """``data`` read from ``file`` as UTF-8 text; bad bytes are one line naming the file and line."""
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
@@ -347,7 +348,7 @@ def load_yaml(path: str | Path, text: str | None = None) -> Any:
     """Load ``path`` with the safe loader, keeping locations; errors are one line."""
     file = str(path)
     if text is None:
-        text = _decode(file, read_bounded(path, MAX_BYTES))
+        text = decode_text(file, read_bounded(path, MAX_BYTES))
     elif len(text) > MAX_BYTES:
         raise YamlError(f"{file}: larger than {MAX_BYTES // 1024} kB: not a graph file")
     try:

@@ -149,3 +149,34 @@ def test_lint_imports() -> None:
                        stdin=subprocess.DEVNULL)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "0 broken" in r.stdout, r.stdout
+
+
+def _private_names_taken(path: Path) -> list[tuple[int, str]]:
+    """(line, 'module.name') of every ``_name`` (not a module, not a dunder) that ``path`` imports
+    from another module: a private name used across modules should be public in its module."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = path.relative_to(_root_of(path)).parts[:-1]
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = list(package[: len(package) - node.level + 1])
+            mod = ".".join([*base, node.module] if node.module else base)
+        else:
+            mod = node.module or ""
+        folder = _root_of(path).joinpath(*mod.split("."))
+        for alias in node.names:
+            name = alias.name
+            if not name.startswith("_") or name.startswith("__"):
+                continue
+            if (folder / f"{name}.py").exists() or (folder / name / "__init__.py").exists():
+                continue  # a (private) module of that package, imported inside it
+            found.append((node.lineno, f"{mod}.{name}"))
+    return found
+
+
+def test_no_private_name_is_taken_from_another_module() -> None:
+    files = _python_files(ENGINE) + [f for p in BUILTIN_PRESENT for f in _python_files(PLUGINS_DIR / p)]
+    bad = [f"{f.relative_to(ROOT)}:{line}: imports {name}" for f in files for line, name in _private_names_taken(f)]
+    assert not bad, "make these names public in their module (or move the code):\n" + "\n".join(bad)

@@ -15,6 +15,7 @@ import numpy as np
 from impala_flow.msgs import wrap_angle
 
 __all__ = [
+    "relative_position",
     "interpolate_truth", "rigid_align_2d", "align_first", "align_start", "apply_rigid", "path_length_m",
     "distance_travelled_m", "relative_error_pct", "TrajectoryMetrics", "trajectory_metrics",
     "PairErrors", "pair_errors", "segment_error_pct", "segment_errors_pct", "TwistErrors", "twist_errors",
@@ -182,7 +183,8 @@ def segment_error_pct(est_xyt: np.ndarray, truth_xyt: np.ndarray,
     return float(np.mean(np.concatenate(list(errs.values())))) if errs else None
 
 
-def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def relative_position(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Position of pose ``b`` (x_m, y_m, theta_rad) in the frame of pose ``a``."""
     c, s = math.cos(a[2]), math.sin(a[2])
     d = b[:2] - a[:2]
     return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])

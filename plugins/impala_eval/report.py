@@ -27,7 +27,8 @@ from impala_flow.msgs import Grid
 
 from .metrics import TrajectoryMetrics, TwistErrors, gap_spans_ns
 
-__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps", "gap_summary"]
+__all__ = ["write_report", "format_metrics", "load_metrics", "METRICS_FILE", "find_gaps", "gap_summary", "new_figure",
+           "show_map"]
 
 METRICS_FILE = "metrics.json"
 _EST, _TRUTH, _BASE = "#d62728", "#2ca02c", "#1f77b4"
@@ -57,7 +58,8 @@ def _gap_text(figures: dict[str, Any]) -> str:
     return gap_summary(figures.get("gaps") or {})
 
 
-def _figure(w: float, h: float):  # type: ignore[no-untyped-def]
+def new_figure(w: float, h: float):  # type: ignore[no-untyped-def]
+    """A matplotlib Figure of ``w`` x ``h`` inches on the Agg backend (matplotlib imported here, lazily)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -82,8 +84,10 @@ def _map_image(grid: Grid, scale: str = "db") -> tuple[np.ndarray, list[float]]:
                  grid.origin_y_m - c / 2, grid.origin_y_m + (h - 0.5) * c]
 
 
-def _show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = None,  # type: ignore[no-untyped-def]
-              scale: str = "db") -> None:
+def show_map(ax, grid: Grid, transform: tuple[np.ndarray, np.ndarray] | None = None,  # type: ignore[no-untyped-def]
+             scale: str = "db") -> None:
+    """Draw the radar map ``grid`` under a figure's trajectories on ``ax`` (in dB or linear power),
+    moved by ``transform`` (rotation, translation) when the trajectories were aligned."""
     import matplotlib.transforms as mtransforms
 
     img, extent = _map_image(grid, scale)
@@ -118,7 +122,7 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     # Fig. 12: the estimate's error on its own scale; below it, beside the baseline's when
     # that one is much larger (dead reckoning drifts tens of metres where R-SLAM stays cm)
     apart = baseline is not None and float(np.max(baseline.error_m)) > 3.0 * max(float(np.max(est.error_m)), 1e-6)
-    fig = _figure(8.0, 6.4 if apart else 3.6)
+    fig = new_figure(8.0, 6.4 if apart else 3.6)
     axes = fig.subplots(2, 1, sharex=True) if apart else [fig.add_subplot()]
     for i, ax in enumerate(axes):
         if baseline is not None and (i == 1 or not apart):
@@ -142,10 +146,10 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
                       fontsize=8)
     fig.savefig(folder / "error_vs_distance.png")
 
-    fig = _figure(7.5, 7.0)
+    fig = new_figure(7.5, 7.0)
     ax = fig.add_subplot()
     if radar_map is not None:
-        _show_map(ax, radar_map, transform, map_scale)
+        show_map(ax, radar_map, transform, map_scale)
     ax.plot(est.truth_xyt[:, 0], est.truth_xyt[:, 1], color=_TRUTH, lw=2.2, alpha=0.8, label="truth")
     if baseline is not None:
         ax.plot(baseline.est_aligned_xyt[:, 0], baseline.est_aligned_xyt[:, 1], color=_BASE, lw=1.2,
@@ -174,9 +178,9 @@ def write_report(folder: str | Path, figures: dict[str, Any], est: TrajectoryMet
     if twist is not None and len(twist.t_ns):
         _twist_figure(folder / "twist_errors.png", twist, title)
     if radar_map is not None:
-        fig = _figure(7.5, 7.0)
+        fig = new_figure(7.5, 7.0)
         ax = fig.add_subplot()
-        _show_map(ax, radar_map, scale=map_scale)
+        show_map(ax, radar_map, scale=map_scale)
         ax.set_aspect("equal")
         ax.set(xlabel="x (m, map frame)", ylabel="y (m, map frame)",
                title=f"Radar map ({radar_map.cell_m:.2f} m cells, eq. 6)")
@@ -188,7 +192,7 @@ def _twist_figure(path: Path, tw: TwistErrors, title: str) -> None:
     """True speed and yaw rate (top), the estimate's errors against time (bottom)."""
     t = (tw.t_ns - tw.t_ns[0]) * 1e-9
     f = tw.figures()
-    fig = _figure(9.0, 6.0)
+    fig = new_figure(9.0, 6.0)
     (a, b), (c, d) = fig.subplots(2, 2, sharex=True)
     a.plot(t, tw.truth_speed_mps, color=_TRUTH, lw=1.2)
     a.set(ylabel="true speed (m/s)", title="speed")
@@ -217,7 +221,7 @@ def _pairs_figure(path: Path, est: TrajectoryMetrics, baseline: TrajectoryMetric
     """Per-pair translation (cm) and rotation (deg) errors, the baseline's as light bars."""
     p = est.pairs
     k = np.arange(1, len(p.t_ns) + 1)
-    fig = _figure(8.0, 6.0)
+    fig = new_figure(8.0, 6.0)
     axes = fig.subplots(3, 1, sharex=True)
     series = [(p.trans_err_m * 100.0, "translation error (cm)", f"mean {100 * p.trans_err_m.mean():.1f} cm"),
               (p.rot_err_deg, "rotation error (deg)", f"mean {p.rot_err_deg.mean():.3f} deg"),

@@ -14,7 +14,6 @@ from impala_flow import Component, Input, Output, Param, ParamError
 from impala_flow.msgs import Grid, Pose2D, Trajectory2D
 
 from ..metrics import (
-    _rel,
     align_first,
     apply_rigid,
     distance_travelled_m,
@@ -22,9 +21,10 @@ from ..metrics import (
     heading_known_at,
     in_spans,
     interpolate_truth,
+    relative_position,
     rigid_align_2d,
 )
-from ..report import METRICS_FILE, _figure, _show_map
+from ..report import METRICS_FILE, new_figure, show_map
 from .core import MAX_ROWS, Iterations, iteration_curves, sorted_by_time
 
 __all__ = ["TrajectoryComparison"]
@@ -162,7 +162,7 @@ class TrajectoryComparison(Component):
                 "max_err_m": float(np.max(err)), "poses_outside_truth": outside,
                 "poses_in_truth_gaps": int(np.count_nonzero(in_gap)), "path_m": float(travelled[-1]),
                 "end_to_end_err_m": None if k0 is None else
-                float(np.hypot(*(_rel(est[k0], est[-1]) - _rel(truth[k0], truth[-1])))),
+                float(np.hypot(*(relative_position(est[k0], est[-1]) - relative_position(truth[k0], truth[-1])))),
                 "r": r, "t": tr, "err": err, "dist": travelled, "xy": aligned[:, :2], "t_ns": t_in}
 
     def compute(self) -> dict[str, Any]:
@@ -335,12 +335,12 @@ class TrajectoryComparison(Component):
         mid, half = 0.5 * (lo + hi), 0.54 * (hi - lo) + 2.0 + 0.04 * float(np.max(hi - lo))
         half = np.maximum(half, 0.3 * float(np.max(half)))  # a straight path keeps some room either side
         rows = (len(self.curves) + (self._baseline_xy is not None) + 3) // 2  # the legend, below the plot
-        fig = _figure(8.0, float(np.clip(7.0 * half[1] / half[0] + 1.0, 3.5, 8.5)) + 0.22 * rows)
+        fig = new_figure(8.0, float(np.clip(7.0 * half[1] / half[0] + 1.0, 3.5, 8.5)) + 0.22 * rows)
         ax = fig.add_subplot()
         radar_map = self.map.get()
         if radar_map is not None and self._map_transform is not None:
-            _show_map(ax, radar_map, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
-        import matplotlib.patheffects as pe  # after _figure: matplotlib is imported lazily
+            show_map(ax, radar_map, self._map_transform)  # the global map (seed 2, Figs. 5 and 7)
+        import matplotlib.patheffects as pe  # after new_figure: matplotlib is imported lazily
 
         halo = [pe.Stroke(linewidth=3.2, foreground="w", alpha=0.9), pe.Normal()]  # readable over a dark map
         ax.plot(*truth_xy.T, color="k", lw=1.0, label="truth", zorder=5, path_effects=halo)
@@ -369,8 +369,8 @@ class TrajectoryComparison(Component):
         values, (a) when they span more than 30x (a first batch iteration far off); values
         that a log scale cannot show (0: the last iteration of (b)) are left out."""
         titles, colour = self._titles(), self._colours()
-        fig = _figure(8.0, 9.6)
-        from matplotlib.ticker import MaxNLocator  # after _figure: matplotlib is imported lazily
+        fig = new_figure(8.0, 9.6)
+        from matplotlib.ticker import MaxNLocator  # after new_figure: matplotlib is imported lazily
 
         a, b, c = fig.subplots(3, 1)
         curves = self.curves.values()

@@ -141,13 +141,13 @@ class TrackingEvaluator(Component):
 
 def write_tracking_report(folder: Path, figures: dict[str, Any], frames: TrackingFrames, title: str) -> None:
     """metrics.json, tracks.png (Fig. 19), existence.png (Fig. 18)."""
-    from ..report import _figure
+    from ..report import new_figure
 
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "metrics.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
     cmap = _colors()
     # Fig. 19: every launched track (thin: never confirmed), truth dashed, radar a cross
-    fig = _figure(7.0, 6.0)
+    fig = new_figure(7.0, 6.0)
     ax = fig.add_subplot(1, 1, 1)
     paths: dict[int, list] = {}
     conf: set[int] = set()
@@ -175,7 +175,7 @@ def write_tracking_report(folder: Path, figures: dict[str, Any], frames: Trackin
     ax.set_title(f"{title}: tracks (solid: confirmed, dotted: tentative), truth dashed")
     fig.savefig(folder / "tracks.png")
     # Fig. 18: existence probability of every track over time
-    fig = _figure(8.0, 4.0)
+    fig = new_figure(8.0, 4.0)
     ax = fig.add_subplot(1, 1, 1)
     series: dict[int, list] = {}
     t0 = frames.exist_t_ns[0] if frames.exist_t_ns else 0
