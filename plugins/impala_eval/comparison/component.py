@@ -1,5 +1,5 @@
 """``eval.TrajectoryComparison``: the component (ports, parameters, sample handling). The algorithm, and
-what it follows, is described in :mod:`impala_eval.comparison.component.core`.
+what it follows, is described in :mod:`impala_eval.comparison.core`.
 """
 
 from __future__ import annotations

@@ -164,7 +164,7 @@ def check_speed(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray, where
 
 def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offset_m: float,
                    beams_per_turn: int, rotation_hz: float) -> impala_msgs.RadarConfig:
-    """A power-only Navtech radar as a :class:`~impala_flow.msgs.RadarConfig`.
+    """A power-only Navtech radar as a :class:`~impala_msgs.RadarConfig`.
 
     Navtech gives no beat frequencies: ``modulation_hz`` is one sweep per azimuth
     (``beams_per_turn * rotation_hz``) and ``bin_hz`` is chosen so that

@@ -1,8 +1,8 @@
 """Streaming mission simulation: radar beams, truth of movers, proprioceptive sensors.
 
 :func:`simulate` yields ``(t_ns, port, msg)`` in non-decreasing time order, merging with
-``heapq.merge``: ``"beams"`` -> :class:`~impala_flow.msgs.RadarBeam`, ``"movers"`` ->
-:class:`~impala_flow.msgs.ObjectStates` (10 Hz), and one port per proprioceptive sensor
+``heapq.merge``: ``"beams"`` -> :class:`~impala_msgs.RadarBeam`, ``"movers"`` ->
+:class:`~impala_msgs.ObjectStates` (10 Hz), and one port per proprioceptive sensor
 (``"odometer"``, ``"gyro"``, ``"gps"`` from :mod:`impala_radar.simulator.sensors`). At most one
 antenna turn is held in memory.
 

@@ -1,5 +1,5 @@
 """``slam.KissIcp``: the component (ports, parameters, sample handling). The algorithm, and
-what it follows, is described in :mod:`impala_slam.kissicp.component.core`.
+what it follows, is described in :mod:`impala_slam.kissicp.core`.
 """
 
 from __future__ import annotations
