@@ -75,24 +75,22 @@ class Session:
 
         ``variables`` are the caller's (``--var``): they win over the files' and a relative
         path starting with one of them stays relative to the working directory."""
-        spec, problems = self.read(path, overrides, variables, text)
-        problems += self.resolve(spec)
-        problems += self.validate(spec)
+        spec, problems = self.problems(path, overrides, variables, text)
         if problems:
             raise GraphError(capped(problems))
         self.pm.hook.impala_flow_graph_loaded(graph=spec)
         return spec
 
     def problems(self, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                 variables: dict[str, Any] | None = None) -> tuple[GraphSpec, list[Problem]]:
+                 variables: dict[str, Any] | None = None, text: str | None = None) -> tuple[GraphSpec, list[Problem]]:
         """Read, resolve and validate a graph as :meth:`load` does, but return every problem
         found (each with ``.message`` and ``.loc``) instead of raising, so a caller can drop
         the ones it expects (e.g. a mission file that does not exist yet) before raising
         ``GraphError(problems)``. A file that cannot be read at all still raises
         :class:`~impala_flow.GraphError`."""
-        spec, problems = read_graph(path, overrides, variables)
-        problems += resolve_paths(spec, self.registry)
-        problems += validate(spec, self.registry)
+        spec, problems = self.read(path, overrides, variables, text)
+        problems += self.resolve(spec)
+        problems += self.validate(spec)
         return spec, problems
 
     @staticmethod
