@@ -1,12 +1,8 @@
 """Entry point of the radar plugin: radar sources, front-end components, the ``simulate``
 mission source, CLI commands.
 
-Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
-``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
-``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
-``impala_msgs``); code several algorithms share in a module at the plugin's top; every
-``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
-(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
+Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
+component modules are imported inside the hooks, so loading the plugin stays cheap.
 """
 
 from __future__ import annotations

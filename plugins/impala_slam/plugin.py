@@ -1,11 +1,7 @@
 """Entry point of the SLAM plugin (``slam = "impala_slam.plugin"``).
 
-Layout (docs/plugins.md, "Layout of a plugin"): one subpackage per algorithm,
-``<algorithm>/component.py`` (the Component: ports, parameters, sample handling) and
-``<algorithm>/core.py`` (the algorithm, no engine import beyond ``impala_flow.msgs`` and
-``impala_msgs``); code several algorithms share in a module at the plugin's top; every
-``__init__.py`` empty. Component modules are imported inside the hooks, so loading the plugin
-(e.g. to build the command line) imports no OpenCV, GTSAM, SciPy or matplotlib.
+Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
+component modules are imported inside the hooks, so loading the plugin stays cheap.
 """
 
 from __future__ import annotations
