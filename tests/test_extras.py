@@ -8,6 +8,7 @@ core install runs without it. The install itself is proven by ``.ci/core-install
 from __future__ import annotations
 
 import ast
+import importlib
 import re
 import sys
 import tomllib
@@ -28,6 +29,8 @@ OURS = {"impala_flow"} | {v.split(".")[0].split(":")[0] for v in [*PLUGINS.value
 ENGINE_OPTIONAL = {"matplotlib": "plot", "pytest": "test"}
 #: engine modules allowed to import an optional library at their top: none
 ENGINE_TOP_LEVEL_PENDING: set[str] = set()
+#: a library an extra names beside the one that depends on it: checked through that one
+TRANSITIVE = {"protobuf": "foxglove-schemas-protobuf", "distributed": "dask"}
 #: the peer baselines (slam.KissIcp) come with the `peers` extra, imported by their component only
 PEERS = "peers"
 
@@ -145,3 +148,21 @@ def test_the_engine_needs_only_the_core_at_import_time() -> None:
         assert providers(module) & EXTRAS[extra], f"{module}: the extra [{extra}] does not bring it"
         eager = {f for f, top in files if top} - ENGINE_TOP_LEVEL_PENDING
         assert not eager, f"{module} is imported at the top of {sorted(eager)}: the core install could not import it"
+
+
+@pytest.mark.parametrize("plugin", sorted(PLUGINS))
+def test_what_a_plugin_requires_up_front_is_what_its_extra_brings(plugin: str) -> None:
+    """A plugin's ``REQUIRES`` (checked by ``impala_flow.plugins.require`` before its hooks run)
+    and its extra in pyproject.toml are two lists of one thing: every module it requires comes
+    with its extra, and every library of its extra is required up front (one listed module per
+    distribution is enough)."""
+    module = importlib.import_module(PLUGINS[plugin].split(":")[0])
+    required = getattr(module, "REQUIRES", None)
+    assert required is not None, f"{PLUGINS[plugin]} declares no REQUIRES"
+    brought = set().union(*(providers(m) for m in required)) if required else set()
+    assert brought <= EXTRAS[plugin] | CORE, f"{plugin}: REQUIRES {required} brings {sorted(brought - EXTRAS[plugin])}"
+    # every library the extra names is checked up front, directly or through the library that
+    # depends on it (TRANSITIVE: protobuf comes with foxglove-schemas-protobuf, distributed with dask)
+    named = {_norm(_req_name(r)) for r in PROJECT["optional-dependencies"][plugin]}
+    unchecked = {n for n in named - brought if TRANSITIVE.get(n) not in brought}
+    assert not unchecked, f"{plugin}: its extra brings {sorted(unchecked)}, which REQUIRES does not check"

@@ -8,7 +8,7 @@ from typing import Any
 from impala_flow.plugins import hookimpl, require
 
 #: the libraries of this plugin's extra (pip install 'impala-flow[sweep]'), checked before any hook runs
-REQUIRES = ("dask", "distributed")
+REQUIRES = ("dask", "distributed", "matplotlib")
 
 
 @hookimpl
