@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 
 from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
-from ..peaks import Peaks, cfar_threshold, find_peaks, peak_features
+from ..peaks import Peaks, cfar_threshold, find_os_peaks, find_peaks, peak_features
 from .fuzzy import pair_score
 
 __all__ = [
@@ -59,8 +59,10 @@ def static_offset_bins(azimuth_rad, speed_mps: float, config: RadarConfig):
 def detect_peaks(power: np.ndarray, pfa: float, train: int, guard: int, method: str,
                  min_bin: int) -> Peaks:
     """CFAR peaks of a turn (beams, bins) with their features."""
-    thr = cfar_threshold(power, pfa, train, guard, method)
-    beam, bin_ = find_peaks(power, thr, min_bin)
+    if method == "os":
+        beam, bin_ = find_os_peaks(power, pfa, train, guard, min_bin)
+    else:
+        beam, bin_ = find_peaks(power, cfar_threshold(power, pfa, train, guard, method), min_bin)
     return peak_features(power, beam, bin_)
 
 
