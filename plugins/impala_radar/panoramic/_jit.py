@@ -54,3 +54,27 @@ def maps(r_read, r, r_cell, bearing, first_rad, per_rad, two_pi, offset_m, per_b
             elif d < 0:
                 d = d + two_pi
             my[k] = d * per_rad + one
+
+
+@numba.njit(cache=True, nogil=True)
+def doppler_mean(up, down, shift_bins, out):  # pragma: no cover - compiled
+    """out[b, k] = 0.5 (up[b, k + s_b] + down[b, k - s_b]), each read by linear interpolation
+    (0 outside), in float32 as :func:`impala_radar.panoramic.core._shift_rows` computes it."""
+    n = up.shape[1]
+    one, half = np.float32(1.0), np.float32(0.5)
+    for b in range(up.shape[0]):
+        for side in range(2):
+            p = up[b] if side == 0 else down[b]
+            s = shift_bins[b] if side == 0 else -shift_bins[b]
+            for k in range(n):
+                x = k + s
+                k0f = np.floor(x)
+                w = np.float32(x - k0f)
+                k0 = int(k0f)
+                lo = p[k0] if 0 <= k0 < n else np.float32(0.0)
+                hi = p[k0 + 1] if 0 <= k0 + 1 < n else np.float32(0.0)
+                v = (one - w) * lo + w * hi
+                if side == 0:
+                    out[b, k] = v
+                else:
+                    out[b, k] = half * (out[b, k] + v)

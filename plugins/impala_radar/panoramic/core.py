@@ -87,6 +87,12 @@ def doppler_compensated_power(up: np.ndarray, down: np.ndarray, azimuth_rad, spe
                 / SPEED_OF_LIGHT_MPS / config.bin_hz)
     if down.size == 0:
         return np.asarray(up, np.float32)
+    if up.dtype == down.dtype == np.float32 and up.shape == down.shape and up.ndim == 2:
+        from ._jit import doppler_mean  # here: numba is imported at the first turn, not with the plugin
+
+        out = np.empty(up.shape, np.float32)
+        doppler_mean(np.ascontiguousarray(up), np.ascontiguousarray(down), np.asarray(f_d_bins, float), out)
+        return out  # the formula below, bit for bit, in one pass
     return 0.5 * (_shift_rows(up, f_d_bins) + _shift_rows(down, -f_d_bins))
 
 
@@ -204,7 +210,8 @@ class _Plan:
         self.table = AzimuthTable(azimuth_rad, max_gap)
         self.x, self.y, self.r, self.bearing = grid_geometry(n_half, cell_m)
         self.row0 = self.table.row_of(self.bearing)
-        self.i0 = self.table.nearest(self.row0)
+        i0 = self.table.nearest(self.row0)  # a beam index: int16 (a Navtech's 400 beams) reads faster
+        self.i0 = i0.astype(np.int16) if len(self.table.order) < 32768 else i0
         self.height: dict[float, np.ndarray] = {}
 
     def height_of(self, height_m: float) -> np.ndarray:
