@@ -23,6 +23,7 @@ Gaussian envelope, lower for a peak skewed by a neighbour or merged with it).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -53,6 +54,7 @@ class Peaks:
                      self.symmetry[idx])
 
 
+@functools.lru_cache(maxsize=64)
 def cfar_factor(pfa: float, n_train: int, method: str = "ca", k: int | None = None) -> float:
     """Threshold multiplier alpha of a CA or OS CFAR for ``pfa`` with ``n_train`` cells."""
     if method == "ca":
