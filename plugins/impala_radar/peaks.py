@@ -116,22 +116,16 @@ def find_os_peaks(power: np.ndarray, pfa: float = 1e-4, train: int = 12, guard: 
     same (beam, bin), with the OS level computed only at the local maxima (a peak needs both):
     a fifth of the bins or fewer, instead of a partition at every bin."""
     power = np.asarray(power)
-    local_max = ndimage.maximum_filter1d(power, 2 * neighbourhood + 1, axis=-1, mode="nearest")
-    mask = (power >= local_max) & (power > 0)
-    mask[:, :max(min_bin, 1)] = False
-    mask[:, -1] = False
-    beam, bin_ = np.nonzero(mask)
-    n = 2 * train
-    kk = _os_rank(n, k) - 1
+    kk = _os_rank(2 * train, k) - 1
     p32 = np.pad(power.astype(np.float32), ((0, 0), (guard + train, guard + train)), mode="symmetric")
-    if np.isnan(p32).any():  # NaN has no place in a sorted window: np.partition's threshold (NaN last)
+    if not power.size or np.isnan(p32).any():  # NaN has no place in a sorted window: np.partition's threshold
         return find_peaks(power, cfar_threshold(power, pfa, train, guard, "os", k), min_bin, neighbourhood)
-    from ._cfar_jit import os_levels  # here: numba is imported at the first OS CFAR, not with the plugin
+    from ._cfar_jit import os_peaks  # here: numba is imported at the first OS CFAR, not with the plugin
 
-    level = np.empty(len(beam), np.float32)
-    os_levels(p32, train, guard, kk, beam, bin_, level)
-    keep = power[beam, bin_] > cfar_factor(pfa, n, "os", k) * level.astype(np.float64)
-    return beam[keep], bin_[keep]
+    beam, bin_ = np.empty(power.size, np.intp), np.empty(power.size, np.intp)
+    n = os_peaks(power, p32, train, guard, kk, cfar_factor(pfa, 2 * train, "os", k), min_bin, neighbourhood,
+                 beam, bin_)
+    return beam[:n].copy(), bin_[:n].copy()
 
 
 def _gaussian_vertex(lm: np.ndarray, l0: np.ndarray, lp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
