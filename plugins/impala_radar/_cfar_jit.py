@@ -3,8 +3,9 @@
 One pass over the spectra: at each bin that can be a peak (a positive local maximum: a
 fifth of the bins or fewer) the k-th smallest of its training cells, the value ``np.partition``
 over the sliding-window views of :func:`impala_radar.peaks.cfar_threshold` picks, keeping only
-the ``2 train - k`` largest of the cells, then the threshold test. Imported by the first OS CFAR, compiled at its first call
-(``cache=True``: once per machine, then loaded from numba's cache).
+the ``2 train - k`` largest of the cells, then the threshold test. Imported by the first OS
+CFAR, compiled at its first call (``cache=True``: once per machine, then loaded from numba's
+cache).
 """
 
 from __future__ import annotations
