@@ -9,6 +9,10 @@ into the vehicle frame of beam i0's time, c_i = R(-phi_i) (c - t_i), whose beari
 range give the fractional beam and bin read. One fixed-point step suffices: neighbouring
 beams' poses differ by v / (B f_rot) (1.4 cm at 5 m/s), except across the turn's seam
 (first/last beam), where the image itself is discontinuous (the trochoid does not close).
+What the beam azimuths and the grid fix (each cell's nominal beam, its bearing's row without
+motion) is kept while the turns repeat them; the per-cell arithmetic runs in compiled loops
+(:mod:`._jit`, numba), bit for bit the float32 formula, with OpenCV for the polar coordinates
+and the bilinear read (graphs/oxford.yaml on RADIATE: 111 -> 16 ms of CPU per turn).
 
 Doppler compensation: the up and down spectra of a static target sit at f_r +- f_d with
 f_d = 2 V f0 / c, V = -v cos(theta) (eq. 2, 7); shifting each beam's up spectrum by -f_d
