@@ -12,7 +12,9 @@ beams' poses differ by v / (B f_rot) (1.4 cm at 5 m/s), except across the turn's
 What the beam azimuths and the grid fix (each cell's nominal beam, its bearing's row without
 motion) is kept while the turns repeat them; the per-cell arithmetic runs in compiled loops
 (:mod:`._jit`, numba), bit for bit the float32 formula, with OpenCV for the polar coordinates
-and the bilinear read (graphs/oxford.yaml on RADIATE: 111 -> 16 ms of CPU per turn).
+and the bilinear read (graphs/oxford.yaml's settings on RADIATE turns: 111 -> 28 ms of CPU per
+turn on a loaded machine, bench/frontend.py; the first grid compiles the loops once per machine,
+2 s, then loads them from numba's cache, 0.5 s with the import).
 
 Doppler compensation: the up and down spectra of a static target sit at f_r +- f_d with
 f_d = 2 V f0 / c, V = -v cos(theta) (eq. 2, 7); shifting each beam's up spectrum by -f_d
