@@ -14,7 +14,7 @@ import pytest
 
 PLUGINS = ("impala_radar", "impala_slam", "impala_tracking", "impala_eval")
 #: libraries a component needs, never the plugin module discovery imports
-HEAVY = ("cv2", "gtsam", "scipy", "matplotlib", "filterpy", "motmetrics")
+HEAVY = ("cv2", "gtsam", "scipy", "matplotlib", "filterpy", "motmetrics", "numba")
 
 
 def _root(plugin: str) -> Path:

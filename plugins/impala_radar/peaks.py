@@ -2,7 +2,8 @@
 
 All functions work on a whole turn at once: ``power`` is (beams, bins) linear power, the
 sliding windows run along the bin axis (:mod:`scipy.ndimage` box filters for CA,
-``np.partition`` over sliding-window views for OS).
+``np.partition`` over sliding-window views for OS; :func:`find_os_peaks` computes the OS
+level only where a peak can be, compiled with numba).
 
 CFAR (square-law detector, exponentially distributed noise power). For ``n`` training
 cells (both sides, ``guard`` cells excluded around the cell under test) and a false-alarm
@@ -22,6 +23,7 @@ Gaussian envelope, lower for a peak skewed by a neighbour or merged with it).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -29,7 +31,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy import ndimage, optimize
 
-__all__ = ["Peaks", "cfar_factor", "cfar_threshold", "find_peaks", "peak_features"]
+__all__ = ["Peaks", "cfar_factor", "cfar_threshold", "find_peaks", "find_os_peaks", "peak_features"]
 
 _FEATURE_HALF_WINDOW = 12  # bins searched each side for the half-power crossings
 
@@ -52,6 +54,7 @@ class Peaks:
                      self.symmetry[idx])
 
 
+@functools.lru_cache(maxsize=64)
 def cfar_factor(pfa: float, n_train: int, method: str = "ca", k: int | None = None) -> float:
     """Threshold multiplier alpha of a CA or OS CFAR for ``pfa`` with ``n_train`` cells."""
     if method == "ca":
@@ -105,6 +108,24 @@ def find_peaks(power: np.ndarray, threshold: np.ndarray, min_bin: int = 0,
     mask[:, :max(min_bin, 1)] = False
     mask[:, -1] = False
     return np.nonzero(mask)
+
+
+def find_os_peaks(power: np.ndarray, pfa: float = 1e-4, train: int = 12, guard: int = 4, min_bin: int = 0,
+                  k: int | None = None, neighbourhood: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """``find_peaks(power, cfar_threshold(power, pfa, train, guard, "os", k), min_bin)``, the
+    same (beam, bin), with the OS level computed only at the local maxima (a peak needs both):
+    a fifth of the bins or fewer, instead of a partition at every bin."""
+    power = np.asarray(power)
+    kk = _os_rank(2 * train, k) - 1
+    p32 = np.pad(power.astype(np.float32), ((0, 0), (guard + train, guard + train)), mode="symmetric")
+    if not power.size or np.isnan(p32).any():  # NaN has no place in a sorted window: np.partition's threshold
+        return find_peaks(power, cfar_threshold(power, pfa, train, guard, "os", k), min_bin, neighbourhood)
+    from ._cfar_jit import os_peaks  # here: numba is imported at the first OS CFAR, not with the plugin
+
+    beam, bin_ = np.empty(power.size, np.intp), np.empty(power.size, np.intp)
+    n = os_peaks(power, p32, train, guard, kk, cfar_factor(pfa, 2 * train, "os", k), min_bin, neighbourhood,
+                 beam, bin_)
+    return beam[:n].copy(), bin_[:n].copy()
 
 
 def _gaussian_vertex(lm: np.ndarray, l0: np.ndarray, lp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

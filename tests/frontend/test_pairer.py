@@ -117,3 +117,35 @@ def test_component_emits_one_batch_per_turn():
     k = np.searchsorted(truth["beam"], d.beam)
     assert np.median(np.abs(d.range_m - truth["range_m"][k])) < IMPALA.range_resolution_m / 4
     assert np.median(np.abs(d.radial_speed_mps - truth["radial_mps"][k])) < IMPALA.velocity_resolution_mps / 4
+
+
+
+def test_os_cfar_is_the_rank_filter_of_the_training_cells():
+    """The OS CFAR's level is the k-th smallest of the 2 x train cells around each bin: the
+    value scipy.ndimage.rank_filter picks with that footprint (guard cells and the cell under
+    test excluded, edges mirrored), ties included; find_os_peaks, which computes it only at the
+    local maxima, finds the peaks find_peaks finds above that threshold, NaN spectra included."""
+    from scipy import ndimage
+
+    from impala_radar.peaks import cfar_threshold, find_os_peaks, find_peaks
+
+    rng = np.random.default_rng(3)
+    power = rng.exponential(1.0, (40, 300)).astype(np.float32)
+    power[:, 100:140] = np.round(power[:, 100:140])  # ties
+    power[:, 200:260:15] *= 300.0  # targets
+    train, guard = 12, 4
+    footprint = np.ones((1, 2 * (train + guard) + 1), bool)
+    footprint[0, train:train + 2 * guard + 1] = False
+    k = int(round(0.75 * 2 * train)) - 1
+    padded = np.pad(power, ((0, 0), (guard + train, guard + train)), mode="symmetric")
+    level = ndimage.rank_filter(padded, k, footprint=footprint, mode="constant")[:, guard + train:-(guard + train)]
+    thr = cfar_threshold(power, 1e-3, train, guard, "os")
+    assert np.array_equal(thr, cfar_factor(1e-3, 2 * train, "os") * level.astype(np.float64))
+    want = find_peaks(power, thr, 5)
+    assert len(want[0]) > 40
+    got = find_os_peaks(power, 1e-3, train, guard, 5)
+    assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+    power[3, 50] = np.nan
+    got = find_os_peaks(power, 1e-3, train, guard, 5)
+    want = find_peaks(power, cfar_threshold(power, 1e-3, train, guard, "os"), 5)
+    assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))

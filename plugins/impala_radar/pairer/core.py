@@ -28,7 +28,7 @@ from scipy.optimize import linear_sum_assignment
 
 from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
-from ..peaks import Peaks, cfar_threshold, find_peaks, peak_features
+from ..peaks import Peaks, cfar_threshold, find_os_peaks, find_peaks, peak_features
 from .fuzzy import pair_score
 
 __all__ = [
@@ -59,8 +59,10 @@ def static_offset_bins(azimuth_rad, speed_mps: float, config: RadarConfig):
 def detect_peaks(power: np.ndarray, pfa: float, train: int, guard: int, method: str,
                  min_bin: int) -> Peaks:
     """CFAR peaks of a turn (beams, bins) with their features."""
-    thr = cfar_threshold(power, pfa, train, guard, method)
-    beam, bin_ = find_peaks(power, thr, min_bin)
+    if method == "os":
+        beam, bin_ = find_os_peaks(power, pfa, train, guard, min_bin)
+    else:
+        beam, bin_ = find_peaks(power, cfar_threshold(power, pfa, train, guard, method), min_bin)
     return peak_features(power, beam, bin_)
 
 
@@ -165,14 +167,21 @@ def xcorr_speed_prior(up_power: np.ndarray, down_power: np.ndarray, azimuth_rad:
     n = u.shape[1]
     c = scipy.fft.irfft(scipy.fft.rfft(u, 2 * n, axis=1) * np.conj(scipy.fft.rfft(d, 2 * n, axis=1)),
                         2 * n, axis=1)  # c[b, lag mod 2n] = sum_k u[k + lag] d[k]
-    rows = np.arange(len(azimuth_rad))[None, :]
+    flat = c.ravel()
+    row_start = (np.arange(len(azimuth_rad)) * (2 * n))[None, :]
 
     def best(v: np.ndarray) -> float:
         lag = static_offset_bins(azimuth_rad[None, :], v[:, None], config)  # (V, B)
         lo = np.floor(lag)
         w = lag - lo
-        i0 = lo.astype(np.int64) % (2 * n)
-        total = ((1 - w) * c[rows, i0] + w * c[rows, (i0 + 1) % (2 * n)]).sum(axis=1)
+        i0 = lo.astype(np.int64)
+        if i0.min() >= -2 * n and i0.max() < 2 * n:  # mod 2n without the division: a lag of less than 2n bins
+            i0 += np.where(i0 < 0, 2 * n, 0)
+        else:
+            i0 %= 2 * n
+        i1 = i0 + 1
+        i1[i1 == 2 * n] = 0
+        total = ((1 - w) * flat.take(row_start + i0) + w * flat.take(row_start + i1)).sum(axis=1)
         return float(v[int(np.argmax(total))])
 
     # coarse (a quarter of a bin of offset) then fine search

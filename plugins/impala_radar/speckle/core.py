@@ -58,7 +58,7 @@ def multilook(images: list[Grid], interpolation: str = "linear") -> tuple[np.nda
     ref = images[-1]
     h, w = ref.data.shape
     acc = np.zeros((h, w), np.float32)
-    cnt = np.zeros((h, w), np.float32)
+    cnt = np.zeros((h, w), np.uint8 if len(images) < 256 else np.float32)  # looks per cell: small integers
     for g in images:
         if g is ref:
             acc += g.data
@@ -70,7 +70,10 @@ def multilook(images: list[Grid], interpolation: str = "linear") -> tuple[np.nda
         # footprint of the look (nearest: a cell is observed or not)
         cnt += cv2.warpAffine((g.data > 0).view(np.uint8), m, (w, h), flags=cv2.INTER_NEAREST,
                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    out = np.divide(acc, cnt, out=np.zeros_like(acc), where=cnt > 1e-3)
+    seen = (cnt > 0).view(np.uint8)
+    cnt = cnt.astype(np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):  # the unseen cells' inf and NaN are not kept
+        out = cv2.copyTo(acc / cnt, seen)  # 0 where no look observed the cell
     return out, cnt
 
 
