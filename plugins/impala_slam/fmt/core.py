@@ -110,6 +110,9 @@ class FmtImage:
     image: np.ndarray  # float32 size x size, row = y, column = x, radar at the centre
     polar: np.ndarray  # angles x radii, float32: high-passed |FFT| in polar coordinates
     cell_m: float
+    # rfft2 of image * Hann by number of columns kept (see _spectrum): computed once however often
+    # the image is registered as the older one
+    spectra: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def nbytes(self) -> int:
@@ -197,7 +200,11 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
     if s < 1.0 and abs(1.0 / s - round(1.0 / s)) < 1e-6:  # integer reduction: average the cells
         k = int(round(1.0 / s))
         h, w = (data.shape[0] // k) * k, (data.shape[1] // k) * k
-        data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
+        if k == 2:  # the mean below, summed in numpy's order (bit-identical), without its slow strided reduction
+            top, bottom = data[0:h:2], data[1:h:2]
+            data = ((top[:, 0:w:2] + top[:, 1:w:2]) + (bottom[:, 0:w:2] + bottom[:, 1:w:2])) / np.float32(4)
+        else:
+            data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
                       [0.0, 1.0, (grid.origin_y_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2]])
         interp = cv2.INTER_LINEAR
@@ -267,13 +274,55 @@ def phase_correlation(a: np.ndarray, b: np.ndarray,
                       weight: np.ndarray | None = None) -> tuple[float, float, float, np.ndarray]:
     """Shift (dy, dx) in cells such that b(q) = a(q - d), its peak SNR and the normalised
     Hessian of the peak (eq. 1 of seed 2: normalised cross-power spectrum, inverse FFT)."""
-    fa = scipy.fft.rfft2(a, workers=1)
-    fb = scipy.fft.rfft2(b, workers=1)
+    cols, w = _columns(a.shape, weight)
+    return _peak(_correlate(_rfft2(a, cols), _rfft2(b, cols), w, a.shape))
+
+
+def _columns(shape: tuple[int, ...], weight: np.ndarray | None) -> tuple[int, np.ndarray | None]:
+    """Columns of the rfft2 layout the correlation needs (those where the weight is not 0, all
+    without a weight) and the weight on them."""
+    if weight is None:
+        return shape[1] // 2 + 1, None
+    key = (id(weight), weight.shape)
+    if key not in _columns_of:
+        cols = int(np.flatnonzero(np.any(weight != 0, axis=0))[-1]) + 1 if np.any(weight) else 1
+        _columns_of[key] = (cols, np.ascontiguousarray(weight[:, :cols]), weight)  # weight kept: its id stays its own
+    cols, w, _ = _columns_of[key]
+    return cols, w
+
+
+_columns_of: dict[tuple, tuple[int, np.ndarray, np.ndarray]] = {}
+
+
+def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
+    """``scipy.fft.rfft2(img)``'s first ``cols`` columns, the same numbers: rfft2 is the real
+    transform of the rows then the transform of the columns, here of the kept columns only."""
+    if cols >= img.shape[1] // 2 + 1:
+        return scipy.fft.rfft2(img, workers=1)
+    return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=1)[:, :cols], axis=0, workers=1)
+
+
+def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
+    """The phase correlation surface from two images' (first columns of) rfft2: the whitened
+    cross-power spectrum, weighted, transformed back (the columns left out are zero)."""
     cross = fb * np.conj(fa)
-    cross /= np.maximum(np.abs(cross), 1e-12 * max(float(np.abs(cross).max()), 1e-30))
+    mag = np.abs(cross)
+    cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
     if weight is not None:
         cross *= weight
-    c = scipy.fft.irfft2(cross, s=a.shape, workers=1)
+    if cross.shape[1] >= shape[1] // 2 + 1:
+        return scipy.fft.irfft2(cross, s=shape, workers=1)
+    # irfft2 = the inverse transform of the columns, then the real inverse of the rows, scaled once
+    # by 1 / (ny nx) at the end: the same numbers, without transforming the columns that are zero
+    full = np.zeros((shape[0], shape[1] // 2 + 1), cross.dtype)
+    full[:, :cross.shape[1]] = scipy.fft.ifft(cross, axis=0, norm="forward", workers=1)
+    c = scipy.fft.irfft(full, n=shape[1], axis=1, norm="forward", workers=1)
+    c *= c.dtype.type(1.0 / (shape[0] * shape[1]))
+    return c
+
+
+def _peak(c: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+    """The correlation surface's peak: shift (dy, dx) in cells, SNR, normalised Hessian."""
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
     dy, dx, h = _quadratic_peak(c, int(iy), int(ix))
     snr = _snr(c, int(iy), int(ix))
@@ -285,13 +334,44 @@ def phase_correlation(a: np.ndarray, b: np.ndarray,
 
 def _snr(c: np.ndarray, iy: int, ix: int, guard: int = 3) -> float:
     """Peak height over the standard deviation of the surface away from the peak."""
-    mask = np.ones(c.shape, bool)
-    ys = np.arange(iy - guard, iy + guard + 1) % c.shape[0]
-    xs = np.arange(ix - guard, ix + guard + 1) % c.shape[1]
-    mask[np.ix_(ys, xs)] = False
-    rest = c[mask]
-    sd = float(rest.std())
-    return float((c[iy, ix] - rest.mean()) / sd) if sd > 0 else 0.0
+    ny, nx = c.shape
+    rows = np.arange(iy - guard, iy + guard + 1) % ny
+    cols = np.arange(ix - guard, ix + guard + 1) % nx
+    if 2 * guard + 1 >= min(ny, nx):  # the window wraps onto itself: the mask, plainly
+        mask = np.ones(c.shape, bool)
+        mask[np.ix_(rows, cols)] = False
+        rest = c[mask]
+    else:
+        rest = _outside(c, rows, cols)
+    if rest.size == 0:
+        return 0.0
+    # rest.mean() and rest.std() as numpy computes them (the same sums and roundings: the sum
+    # divided by the count in float64, rounded to the array's type), the mean summed once
+    t, n = rest.dtype.type, np.intp(rest.size)
+    mean = t(rest.sum() / n)
+    dev = rest - mean
+    np.multiply(dev, dev, out=dev)
+    sd = float(t(np.sqrt(t(dev.sum() / n))))
+    return float((c[iy, ix] - mean) / sd) if sd > 0 else 0.0
+
+
+def _outside(c: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``c[mask]`` (row-major order) for the mask that is False on rows x cols: the rows
+    outside whole, each window row without its columns."""
+    keep_cols = np.ones(c.shape[1], bool)
+    keep_cols[cols] = False
+    in_rows = np.zeros(c.shape[0], bool)
+    in_rows[rows] = True
+    pieces = []
+    y = 0
+    for r in np.flatnonzero(in_rows):
+        if r > y:
+            pieces.append(c[y:r].ravel())
+        pieces.append(c[r, keep_cols])
+        y = r + 1
+    if y < c.shape[0]:
+        pieces.append(c[y:].ravel())
+    return np.concatenate(pieces)
 
 
 def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, float]:
@@ -341,10 +421,10 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
     theta0, snr_r, curv_r = _rotation(a, b, p)
     hann = _hann(a.image.shape)
-    wa = a.image * hann
+    fa = _spectrum(a, hann, p)
     best = None
     for theta in (theta0, theta0 + math.pi):
-        cand = _translation(wa, b.image, hann, theta, p)
+        cand = _translation(fa, b.image, hann, theta, p)
         if best is None:
             best = cand
         elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
@@ -356,7 +436,7 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     assert best is not None
     refined_curv = 0.0
     if p.refine_deg > 0:
-        best, refined_curv = _refine_rotation(wa, b.image, hann, best, math.radians(p.refine_deg), p)
+        best, refined_curv = _refine_rotation(fa, b.image, hann, best, math.radians(p.refine_deg), p)
     snr_t, theta, x, y, h = best
     theta = math.remainder(theta, 2 * math.pi)
     cov = _covariance(p, snr_t, h, snr_r, curv_r, (x, y), refined_curv)
@@ -374,15 +454,26 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
     return register(prepare(a, p, linear_power), prepare(b, p, linear_power), p, prior_theta_rad)
 
 
-def _translation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, p: FmtParams) -> tuple:
-    """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak."""
+def _spectrum(a: FmtImage, hann: np.ndarray, p: FmtParams) -> np.ndarray:
+    """rfft2 of the older image (Hann-windowed), the columns the translation uses: computed
+    once per image (:attr:`FmtImage.spectra`), not once per rotation tried."""
+    cols, _ = _columns(a.image.shape, _low_pass(a.image.shape[0], p.cell_m, p.min_wavelength_m))
+    if cols not in a.spectra:
+        a.spectra[cols] = _rfft2(a.image * hann, cols)
+    return a.spectra[cols]
+
+
+def _translation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: float, p: FmtParams) -> tuple:
+    """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak;
+    ``fa``: the older image's :func:`_spectrum`."""
     # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
-    weight = _low_pass(wa.shape[0], p.cell_m, p.min_wavelength_m)
-    dy, dx, snr, h = phase_correlation(wa, _derotate(b_img, theta) * hann, weight)
+    cols, weight = _columns(b_img.shape, _low_pass(b_img.shape[0], p.cell_m, p.min_wavelength_m))
+    fb = _rfft2(_derotate(b_img, theta) * hann, cols)
+    dy, dx, snr, h = _peak(_correlate(fa, fb, weight, b_img.shape))
     return snr, theta, -dx * p.cell_m, -dy * p.cell_m, h
 
 
-def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: tuple, step: float,
+def _refine_rotation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: tuple, step: float,
                      p: FmtParams) -> tuple[tuple, float]:
     """Beyond Algorithm 1: the rotation of the spectra is good to a bin; the translation
     peak's SNR as a function of the rotation is sharper. Parabola through theta - step,
@@ -392,8 +483,8 @@ def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: 
     theta = best[1]
     mid = best
     for _ in range(3):
-        lo = _translation(wa, b_img, hann, theta - step, p)
-        hi = _translation(wa, b_img, hann, theta + step, p)
+        lo = _translation(fa, b_img, hann, theta - step, p)
+        hi = _translation(fa, b_img, hann, theta + step, p)
         if lo[0] > mid[0] and lo[0] >= hi[0]:
             theta, mid = theta - step, lo
             continue
@@ -404,7 +495,7 @@ def _refine_rotation(wa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: 
         if den >= 0:
             return mid, 0.0
         d = float(np.clip(0.5 * (lo[0] - hi[0]) / den, -0.5, 0.5))
-        return _translation(wa, b_img, hann, theta + d * step, p), -den / step ** 2
+        return _translation(fa, b_img, hann, theta + d * step, p), -den / step ** 2
     return mid, 0.0
 
 
