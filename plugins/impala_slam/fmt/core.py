@@ -236,15 +236,37 @@ def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = Tr
 
 
 def polar_spectrum(img: np.ndarray, p: FmtParams) -> np.ndarray:
-    spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * _hann(img.shape), workers=1))).astype(np.float32)
-    spec *= _high_pass(img.shape[0])
     n = img.shape[0]
     radii = n // 2
-    polar = cv2.warpPolar(spec, (radii, p.angles), (float(n // 2), float(n // 2)), radii,  # the DC bin
-                          cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
     lo, hi = int(p.band[0] * n), int(p.band[1] * n)  # radius of f cycles/cell = f * n pixels
+    flags = cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR
+    centre = (float(n // 2), float(n // 2))  # the DC bin
+    if img.shape[1] == n and n % 2 == 0 and hi + 4 < radii:
+        # only the radii up to the band's are resampled (one pixel per radius as over the whole
+        # half side: the same numbers), from the spectrum within them
+        spec = _magnitude(img * _hann(img.shape), hi + 4)
+        spec *= _high_pass(n)
+        polar = cv2.warpPolar(spec, (hi, p.angles), centre, hi, flags)
+    else:
+        spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * _hann(img.shape), workers=1))).astype(np.float32)
+        spec *= _high_pass(n)
+        polar = cv2.warpPolar(spec, (radii, p.angles), centre, radii, flags)
     band = polar[:, lo:hi]
     return np.ascontiguousarray(band / max(float(band.std()), 1e-12), np.float32)
+
+
+def _magnitude(img: np.ndarray, m: int) -> np.ndarray:
+    """``abs(fftshift(fft2(img)))`` of a real n x n image (n even) within m columns of the DC
+    bin (0 beyond), the same numbers from m columns of its rfft2: fft2 of a real image is its
+    rfft2 with the other half (and the second half of column 0) filled by symmetry,
+    F(-u, -v) = conj F(u, v)."""
+    n = img.shape[0]
+    a = np.abs(_rfft2(img, m))
+    full = np.zeros((n, n), a.dtype)
+    full[:, :m] = a
+    full[n // 2 + 1:, 0] = a[n // 2 - 1:0:-1, 0]
+    full[:, n - m + 1:] = a[(-np.arange(n)) % n][:, m - 1:0:-1]
+    return scipy.fft.fftshift(full)
 
 
 # --- phase correlation ---------------------------------------------------------------
