@@ -504,9 +504,16 @@ def _refine_rotation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: 
     (1 / rad^2; 0 when there is no maximum): the rotation's covariance."""
     theta = best[1]
     mid = best
+    done = {theta: best}  # a step back onto a rotation already tried (exactly) is not computed again
+
+    def at(t: float) -> tuple:
+        if t not in done:
+            done[t] = _translation(fa, b_img, hann, t, p)
+        return done[t]
+
     for _ in range(3):
-        lo = _translation(fa, b_img, hann, theta - step, p)
-        hi = _translation(fa, b_img, hann, theta + step, p)
+        lo = at(theta - step)
+        hi = at(theta + step)
         if lo[0] > mid[0] and lo[0] >= hi[0]:
             theta, mid = theta - step, lo
             continue
