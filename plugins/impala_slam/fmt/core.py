@@ -201,8 +201,9 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
         k = int(round(1.0 / s))
         h, w = (data.shape[0] // k) * k, (data.shape[1] // k) * k
         if k == 2:  # the mean below, summed in numpy's order (bit-identical), without its slow strided reduction
-            top, bottom = data[0:h:2], data[1:h:2]
-            data = ((top[:, 0:w:2] + top[:, 1:w:2]) + (bottom[:, 0:w:2] + bottom[:, 1:w:2])) / np.float32(4)
+            pairs = data[:h, 0:w:2] + data[:h, 1:w:2]  # (x00 + x01) + (x10 + x11)
+            data = pairs[0::2] + pairs[1::2]
+            data /= np.float32(4)
         else:
             data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
@@ -223,12 +224,12 @@ def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = Tr
     if np.any(observed):
         vals = img[observed]
         if linear_power:
-            level = float(np.quantile(vals, p.db_floor_quantile))
+            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))  # vals: a copy, reordered
             level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
             keep = img > level
             out[keep] = 10.0 * np.log10(img[keep] / level)
         else:
-            level = float(np.quantile(vals, p.db_floor_quantile))
+            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))
             keep = img > level
             out[keep] = img[keep] - level
     out *= _taper(p)
