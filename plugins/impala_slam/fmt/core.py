@@ -327,7 +327,10 @@ def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
 
 def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
     """The phase correlation surface from two images' (first columns of) rfft2: the whitened
-    cross-power spectrum, weighted, transformed back (the columns left out are zero)."""
+    cross-power spectrum, weighted, transformed back (the columns left out are zero). The
+    surface over the whole spectrum to float32 rounding: numpy's complex64 product of the same
+    numbers can differ in the last bit with the arrays' sizes (every registration of the
+    512-cell RADIATE turns came out bit-identical; tests/slam/test_fmt_core.py)."""
     cross = fb * np.conj(fa)
     mag = np.abs(cross)
     cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
