@@ -301,20 +301,24 @@ def phase_correlation(a: np.ndarray, b: np.ndarray,
     return _peak(_correlate(_rfft2(a, cols), _rfft2(b, cols), w, a.shape))
 
 
-def _columns(shape: tuple[int, ...], weight: np.ndarray | None) -> tuple[int, np.ndarray | None]:
+def _columns(shape: tuple[int, ...], weight: np.ndarray | None, cache: bool = False) -> tuple[int, np.ndarray | None]:
     """Columns of the rfft2 layout the correlation needs (those where the weight is not 0, all
-    without a weight) and the weight on them."""
+    without a weight) and the weight on them; ``cache``: the weight is one of :func:`_low_pass`'s
+    (kept for the process's life, so its id names it)."""
     if weight is None:
         return shape[1] // 2 + 1, None
     key = (id(weight), weight.shape)
-    if key not in _columns_of:
-        cols = int(np.flatnonzero(np.any(weight != 0, axis=0))[-1]) + 1 if np.any(weight) else 1
-        _columns_of[key] = (cols, np.ascontiguousarray(weight[:, :cols]), weight)  # weight kept: its id stays its own
-    cols, w, _ = _columns_of[key]
-    return cols, w
+    if cache and key in _columns_of:
+        return _columns_of[key]
+    nz = np.any(weight != 0, axis=0)
+    cols = int(np.flatnonzero(nz)[-1]) + 1 if np.any(nz) else 1
+    out = cols, np.ascontiguousarray(weight[:, :cols])
+    if cache:
+        _columns_of[key] = out
+    return out
 
 
-_columns_of: dict[tuple, tuple[int, np.ndarray, np.ndarray]] = {}
+_columns_of: dict[tuple, tuple[int, np.ndarray]] = {}
 
 
 def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
@@ -483,7 +487,7 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
 def _spectrum(a: FmtImage, hann: np.ndarray, p: FmtParams) -> np.ndarray:
     """rfft2 of the older image (Hann-windowed), the columns the translation uses: computed
     once per image (:attr:`FmtImage.spectra`), not once per rotation tried."""
-    cols, _ = _columns(a.image.shape, _low_pass(a.image.shape[0], p.cell_m, p.min_wavelength_m))
+    cols, _ = _columns(a.image.shape, _low_pass(a.image.shape[0], p.cell_m, p.min_wavelength_m), True)
     if cols not in a.spectra:
         a.spectra[cols] = _rfft2(a.image * hann, cols)
     return a.spectra[cols]
@@ -493,7 +497,7 @@ def _translation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: flo
     """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak;
     ``fa``: the older image's :func:`_spectrum`."""
     # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
-    cols, weight = _columns(b_img.shape, _low_pass(b_img.shape[0], p.cell_m, p.min_wavelength_m))
+    cols, weight = _columns(b_img.shape, _low_pass(b_img.shape[0], p.cell_m, p.min_wavelength_m), True)
     fb = _rfft2(_derotate(b_img, theta) * hann, cols)
     dy, dx, snr, h = _peak(_correlate(fa, fb, weight, b_img.shape))
     return snr, theta, -dx * p.cell_m, -dy * p.cell_m, h
