@@ -116,7 +116,7 @@ class FmtImage:
 
     @property
     def nbytes(self) -> int:
-        return self.image.nbytes + self.polar.nbytes
+        return self.image.nbytes + self.polar.nbytes + sum(s.nbytes for s in self.spectra.values())
 
 
 @dataclass
