@@ -63,6 +63,29 @@ def test_translation_surface_is_the_whole_spectrum_one(min_wavelength_m):
     assert got[2] == pytest.approx(want[2], rel=1e-4)
 
 
+@pytest.mark.parametrize("min_wavelength_m, coarse", [(0.8, True), (1.5, True), (0.6, False), (0.0, False)])
+@pytest.mark.parametrize("theta_deg", [-4.0, 3.0, 60.0])
+def test_coarse_grid_peak_is_the_whole_surface_one(min_wavelength_m, coarse, theta_deg):
+    # a low-pass 0 beyond 1/4 cycle per cell (min_wavelength_m >= 4 cells): the peak, its Hessian and
+    # SNR from the n/2 x n/2 grid are those of the plain n x n surface (numpy's irfft2 of the whole spectrum)
+    a, b = _images()
+    hann = core._hann(a.image.shape)
+    wa, wb = a.image * hann, core._derotate(b.image, math.radians(theta_deg)) * hann
+    n = wa.shape[0]
+    weight = core._low_pass(n, P.cell_m, min_wavelength_m)
+    cols, w = core._columns(wa.shape, weight, True)
+    rows = core._coarse_rows(n, weight, cols)
+    assert (rows is not None) == coarse
+    if not coarse:
+        return
+    fa, fb = core._rfft2(wa, cols), core._rfft2(wb, cols)
+    got = core._coarse_peak(fa[rows], fb[rows], w[rows], n)
+    want = core._peak(_plain_surface(wa, wb, weight))
+    np.testing.assert_allclose(got[:2], want[:2], atol=1e-4)
+    assert got[2] == pytest.approx(want[2], rel=1e-4)
+    np.testing.assert_allclose(got[3], want[3], rtol=1e-4, atol=1e-6)
+
+
 def test_polar_spectrum_is_the_whole_spectrum_one():
     a, _ = _images()
     img, n = a.image, a.image.shape[0]

@@ -31,7 +31,12 @@ pull the translation to zero. :func:`register` then runs the rest of Algorithm 1
   against about 50); at 0.8 m, the per-pair error against R-SLAM fell from 1.9 m to 5 cm
   there and Oxford's pairs improved (7.1 to 5.8 cm, 0.15 to 0.08 deg). Flat between 0.8 and
   1.2 m; the default 0 keeps the whole band (the simulated campus missions, 0.5 m cells,
-  whose Nyquist wavelength of 1 m is already coarser);
+  whose Nyquist wavelength of 1 m is already coarser). When min_wavelength_m is at least 4
+  cells (RADIATE: 0.8 m at 0.2 m cells), the low-pass leaves nothing beyond 1/4 cycle per
+  cell, so the correlation surface is band-limited and its values every other cell hold all of
+  it (Nyquist): it is computed on an n/2 x n/2 grid (4x smaller inverse transform and peak
+  search) and only the 7 x 7 cells around the peak at full resolution (:func:`_coarse_peak`;
+  the same peak, Hessian and SNR to float rounding);
 - beyond Algorithm 1 (``refine_deg``, 0 to switch it off): the rotation of the magnitude
   spectra is good to about a polar bin (0.5 deg): it is refined by a parabola through the
   translation peak's SNR at theta - step, theta, theta + step, and the translation taken
@@ -497,10 +502,96 @@ def _translation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, theta: flo
     """Steps 10-14 at rotation theta: (SNR, theta, x_m, y_m, Hessian) of the translation peak;
     ``fa``: the older image's :func:`_spectrum`."""
     # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
-    cols, weight = _columns(b_img.shape, _low_pass(b_img.shape[0], p.cell_m, p.min_wavelength_m), True)
+    lp = _low_pass(b_img.shape[0], p.cell_m, p.min_wavelength_m)
+    cols, weight = _columns(b_img.shape, lp, True)
     fb = _rfft2(_derotate(b_img, theta) * hann, cols)
-    dy, dx, snr, h = _peak(_correlate(fa, fb, weight, b_img.shape))
+    rows = _coarse_rows(b_img.shape[0], lp, cols)
+    if rows is None:
+        dy, dx, snr, h = _peak(_correlate(fa, fb, weight, b_img.shape))
+    else:
+        dy, dx, snr, h = _coarse_peak(fa[rows], fb[rows], weight[rows], b_img.shape[0])
     return snr, theta, -dx * p.cell_m, -dy * p.cell_m, h
+
+
+_coarse_of: dict[tuple, np.ndarray | None] = {}
+
+
+def _coarse_rows(n: int, weight: np.ndarray | None, cols: int) -> np.ndarray | None:
+    """Rows of the rfft2 layout (n x n image) kept on the coarse grid (:func:`_coarse_peak`):
+    those of frequency |f| < 1 / (2 k) cycles / cell, k = 2 (the coarse grid of n / 2 cells of
+    2 cells each), when the low-pass is 0 at every frequency beyond (None otherwise: the
+    whole grid, as without a low-pass)."""
+    if weight is None or n % 4:
+        return None
+    key = (id(weight), n, cols)
+    if key not in _coarse_of:
+        m = n // 2
+        rows = np.r_[0:m // 2, n - m // 2:n]
+        outside = np.ones(n, bool)
+        outside[rows] = False
+        outside[n - m // 2] = True  # the coarse grid's Nyquist row: 0 too (no aliasing of the surface's energy)
+        ok = cols <= m // 2 and not np.any(weight[outside]) and not np.any(weight[:, m // 2:])
+        _coarse_of[key] = rows if ok else None
+    return _coarse_of[key]
+
+
+def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int) -> tuple[float, float, float, np.ndarray]:
+    """:func:`_peak` of :func:`_correlate`'s n x n surface from the rows and columns of the
+    spectra where the low-pass is not 0 (|f| < 1/4 cycle / cell on both axes), without the
+    n x n surface. Why nothing is lost: the surface is the inverse transform of a spectrum
+    that is 0 beyond 1/4 cycle per cell (the low-pass removes every wavelength shorter than
+    min_wavelength_m >= 4 cells), so it is band-limited and its values every other cell (the
+    inverse transform of the same coefficients on an n/2 x n/2 grid: Nyquist) hold all of
+    it: the maximum is found on that coarse grid, then the surface's exact values on the 7 x 7
+    cells around the full grid's maximum (the same sum of coefficients, evaluated at these
+    cells) give the same quadratic peak and Hessian as :func:`_peak`, and its SNR's mean and
+    standard deviation away from the peak come from the coarse grid's sums (the full grid's
+    sum and sum of squares are 4 times theirs, Parseval on each of the 4 interleaved grids)
+    less the 7 x 7 window's. The same figures to float rounding; on RADIATE turns at
+    0.2 m cells, min_wavelength_m 0.8 m, 4x smaller inverse transforms and peak searches."""
+    cross = fb * np.conj(fa)
+    mag = np.abs(cross)
+    cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
+    cross *= weight
+    m = n // 2
+    coarse = np.zeros((m, m // 2 + 1), cross.dtype)
+    coarse[:, :cross.shape[1]] = cross
+    c = scipy.fft.irfft2(coarse, s=(m, m), workers=1)  # = 4 x the n x n surface every other cell
+    iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
+    freqs = np.r_[0:m // 2, -(m // 2):0] * (2j * np.pi / n)  # the kept rows' frequencies (radians per cell)
+    col_w = np.where(np.arange(cross.shape[1]) == 0, 1.0, 2.0) / (n * n)  # Hermitian half: twice each column but DC
+    col_f = np.arange(cross.shape[1]) * (2j * np.pi / n)
+    spec = cross.astype(np.complex128)
+
+    def window(y: int, x: int, r: int) -> np.ndarray:  # the n x n surface on the cells (y, x) +- r
+        off = np.arange(-r, r + 1)
+        return (np.exp(np.outer(off + y, freqs)) @ spec @ (np.exp(np.outer(col_f, off + x)) * col_w[:, None])).real
+
+    y, x = 2 * int(iy), 2 * int(ix)
+    w = window(y, x, 4)
+    j, i = np.unravel_index(int(np.argmax(w)), w.shape)
+    for _ in range(4):  # the full grid's maximum next to the coarse one's (nearly always within one cell)
+        if abs(j - 4) <= 1 and abs(i - 4) <= 1:
+            y, x = y + j - 4, x + i - 4
+            w = w[j - 3:j + 4, i - 3:i + 4]
+            break
+        y, x = (y + j - 4) % n, (x + i - 4) % n
+        w = window(y, x, 4)
+        j, i = np.unravel_index(int(np.argmax(w)), w.shape)
+    else:
+        w = window(y, x, 3)
+    dy, dx, h = _quadratic_peak(w, 3, 3)
+    # the n x n surface's sum and sum of squares: 4 interleaved grids, each with c / 4's
+    s_all = float(np.sum(c, dtype=np.float64))
+    q_all = float(np.sum(np.square(c, dtype=np.float64))) / 4.0
+    count = n * n - w.size
+    mean = (s_all - float(w.sum())) / count
+    var = max((q_all - float(np.square(w).sum())) / count - mean * mean, 0.0)
+    sd = math.sqrt(var)
+    snr = float((w[3, 3] - mean) / sd) if sd > 0 else 0.0
+    sy = (y + dy + n / 2) % n - n / 2
+    sx = (x + dx + n / 2) % n - n / 2
+    return float(sy), float(sx), snr, h
 
 
 def _refine_rotation(fa: np.ndarray, b_img: np.ndarray, hann: np.ndarray, best: tuple, step: float,
