@@ -101,8 +101,9 @@ def bench_fmt_radiate(mission_path: str | Path, turns: int = 100, out: str | Pat
 def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
     """ms per turn of slam.FmtRegistration.process by stage, from a profile of its calls: total;
     prepare (resampling, threshold, polar spectrum); rotation (of the spectra); translation (of the
-    two rotation candidates); refine (the rotation refinement's translations); of which snr (in the
-    last two) and fft (every FFT)."""
+    two rotation candidates); refine (the rotation refinement's translations); of which peak (the
+    correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse one), snr (the
+    full grid's and the rotation's SNR) and fft (every FFT)."""
     ct: dict[str, float] = {}
     for (path, _, fn), (_, _, _, cum, callers) in stats.stats.items():  # type: ignore[attr-defined]
         if path == "~" and "pypocketfft" in fn:
@@ -111,20 +112,22 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
             continue
         if fn == "_translation":
             ct["translation"] = sum(v[3] for c, v in callers.items() if c[2] == "register")
+        elif fn in ("_peak", "_coarse_peak"):
+            ct["peak"] = ct.get("peak", 0.0) + cum
         elif fn in ("process", "prepare", "_rotation", "_refine_rotation", "_snr"):
             ct[_STAGE.get(fn, fn)] = cum
     return {k: 1e3 * ct.get(k, 0.0) / max(turns, 1) for k in SPLIT}
 
 
-SPLIT = ("total", "prepare", "rotation", "translation", "refine", "snr", "fft")
+SPLIT = ("total", "prepare", "rotation", "translation", "refine", "peak", "snr", "fft")
 _STAGE = {"process": "total", "_rotation": "rotation", "_refine_rotation": "refine", "_snr": "snr"}
 
 
 def split_line(name: str, ms: dict[str, float]) -> str:
     """One line of :func:`fmt_split`'s figures."""
     return (f"{name}: {ms['total']:.1f} ms = prepare {ms['prepare']:.1f} + rotation {ms['rotation']:.1f} + "
-            f"translation {ms['translation']:.1f} + refine {ms['refine']:.1f} (+ rest); within them snr "
-            f"{ms['snr']:.1f}, FFTs {ms['fft']:.1f} (profiled turns)")
+            f"translation {ms['translation']:.1f} + refine {ms['refine']:.1f} (+ rest); within them peaks "
+            f"{ms['peak']:.1f}, snr {ms['snr']:.1f}, FFTs {ms['fft']:.1f} (profiled turns)")
 
 
 def ekf_growth(n_max: int = 1200) -> list[tuple[int, float]]:
