@@ -11,14 +11,22 @@ and LM. Then the EKF's cost per step against the number of poses (O(n^2): the co
 3n x 3n), measured on slam.EkfSlam's own filter (impala_slam.ekf_slam.core.PoseEkf) grown to 1 200
 poses with one registration update and the loop-candidate gate per step, plus the FMT's own
 time per registration; the plot goes to out/bench-fmt-ekf/ekf_step_ms.png. Then the Oxford sample through
-graphs/oxford.yaml (FMT beside R-SLAM). Last line: JSON with the issue's keys.
+graphs/oxford.yaml (FMT beside R-SLAM), and the first turns of a real RADIATE drive (--radiate, an imported
+mission; :func:`bench_fmt_radiate`) through graphs/oxford.yaml: slam.FmtRegistration's CPU time per turn
+(median, this thread's), its split by stage (cProfile on every other turn; the median is taken on the turns
+not profiled) and the FMT's ATE. Last line: JSON with the issue's keys (peak_rss_mb: this process's, the
+RADIATE graph's R-SLAM and panoramic builder included).
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
 import math
+import os
+import pstats
+import resource
 import subprocess
 import sys
 import tempfile
@@ -37,6 +45,89 @@ def _run(graph: str, mission: Path, out: Path) -> tuple[dict, dict]:
                  "--no-progress", "--summary-json", str(out.with_suffix(".summary.json"))]
     subprocess.run(cmd, check=True, capture_output=True)
     return json.loads((out / "metrics.json").read_text()), json.loads(out.with_suffix(".summary.json").read_text())
+
+
+def run_profiled(graph: str, variables: dict) -> tuple[dict, dict]:
+    """A graph run in this process as a user runs it (Session, replay) with its slam.FmtRegistration
+    ``fmt`` timed: CPU ms per turn on every other turn (this thread's; median), the split by stage
+    (:func:`fmt_split`) from cProfile on the other turns. Returns the run's summary ``extra`` and
+    the FMT's figures."""
+    import cv2
+
+    from impala_flow import Session
+
+    cv2.setNumThreads(1)
+    session = Session()
+    net = session.build(session.load(ROOT / "graphs" / graph, variables=variables))
+    fmt = net.components["fmt"]
+    prof = cProfile.Profile(time.thread_time)
+    cpu_ms: list[float] = []
+    process = fmt.process
+
+    def timed(t: int) -> None:
+        if len(cpu_ms) <= fmt.images // 2:
+            t0 = time.thread_time()
+            process(t)
+            cpu_ms.append(1e3 * (time.thread_time() - t0))
+        else:
+            prof.runcall(process, t)
+
+    fmt.process = timed
+    summary = session.run(net)
+    figures = {"ms_per_turn": float(np.median(cpu_ms[1:] or cpu_ms)), "turns": fmt.images, "failures": fmt.failures,
+               **{f"{k}_ms": v for k, v in fmt_split(pstats.Stats(prof), fmt.images - len(cpu_ms)).items()}}
+    return summary.extra, figures
+
+
+def bench_fmt_radiate(mission_path: str | Path, turns: int = 100, out: str | Path | None = None) -> dict:
+    """slam.FmtRegistration on the first ``turns`` turns of an imported Navtech mission (4 turns
+    per second) through graphs/oxford.yaml (:func:`run_profiled`): CPU ms per turn (median, single
+    thread), the per-stage split, the FMT's ATE and per-pair errors against the mission's truth,
+    the peak RSS of this process. Returns the figures (keys with units)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(out or tmp)
+        _, f = run_profiled("oxford.yaml", {"mission": str(mission_path), "out": str(out), "end_s": turns / 4.0})
+        metrics = json.loads((out / "fmt" / "metrics.json").read_text())
+    return {"fmt_radiate_ms_per_turn": round(f["ms_per_turn"], 2),
+            "fmt_radiate_turns": f["turns"],
+            "fmt_radiate_failures": f["failures"],
+            "fmt_radiate_ate_m": metrics["ate_rmse_m"],
+            "fmt_radiate_pair_trans_err_m": metrics.get("pair_trans_err_mean_m"),
+            "fmt_radiate_pair_rot_err_deg": metrics.get("pair_rot_err_mean_deg"),
+            **{f"fmt_radiate_{k}": round(v, 2) for k, v in f.items() if k.endswith("_ms")},
+            "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+
+
+def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
+    """ms per turn of slam.FmtRegistration.process by stage, from a profile of its calls: total;
+    prepare (resampling, threshold, polar spectrum); rotation (of the spectra); translation (of the
+    two rotation candidates); refine (the rotation refinement's translations); of which peak (the
+    correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse one), snr (the
+    full grid's and the rotation's SNR) and fft (every FFT)."""
+    ct: dict[str, float] = {}
+    for (path, _, fn), (_, _, _, cum, callers) in stats.stats.items():  # type: ignore[attr-defined]
+        if path == "~" and "pypocketfft" in fn:
+            ct["fft"] = ct.get("fft", 0.0) + cum
+        if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
+            continue
+        if fn == "_translation":
+            ct["translation"] = sum(v[3] for c, v in callers.items() if c[2] == "register")
+        elif fn in ("_peak", "_coarse_peak"):
+            ct["peak"] = ct.get("peak", 0.0) + cum
+        elif fn in ("process", "prepare", "_rotation", "_refine_rotation", "_snr"):
+            ct[_STAGE.get(fn, fn)] = cum
+    return {k: 1e3 * ct.get(k, 0.0) / max(turns, 1) for k in SPLIT}
+
+
+SPLIT = ("total", "prepare", "rotation", "translation", "refine", "peak", "snr", "fft")
+_STAGE = {"process": "total", "_rotation": "rotation", "_refine_rotation": "refine", "_snr": "snr"}
+
+
+def split_line(name: str, ms: dict[str, float]) -> str:
+    """One line of :func:`fmt_split`'s figures."""
+    return (f"{name}: {ms['total']:.1f} ms = prepare {ms['prepare']:.1f} + rotation {ms['rotation']:.1f} + "
+            f"translation {ms['translation']:.1f} + refine {ms['refine']:.1f} (+ rest); within them peaks "
+            f"{ms['peak']:.1f}, snr {ms['snr']:.1f}, FFTs {ms['fft']:.1f} (profiled turns)")
 
 
 def ekf_growth(n_max: int = 1200) -> list[tuple[int, float]]:
@@ -62,6 +153,9 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=13)
     ap.add_argument("--oxford", default=str(ROOT.parent / "shared" / "data" / "oxford-radar-robotcar-sample"))
     ap.add_argument("--out", default=str(ROOT / "out" / "bench-fmt-ekf"))
+    ap.add_argument("--radiate", default=str(ROOT.parent / "shared" / "data" / "radiate-edinburgh-head"),
+                    help="a RADIATE sequence folder (imported here) or an imported mission (.mcap)")
+    ap.add_argument("--turns", type=int, default=100, help="turns of the RADIATE drive")
     args = ap.parse_args()
     res: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -70,8 +164,9 @@ def main() -> int:
             mission = tmp / f"{scen}.mcap"
             subprocess.run(CLI + ["simulate", scen, "-o", str(mission), "--seed", str(args.seed), "--no-progress"],
                            check=True, capture_output=True)
-            m, s = _run("fmt_ekf.yaml", mission, tmp / f"out-{scen}")
-            res[scen] = (m, s["extra"].get("ekf", {}), s["extra"].get("fmt", {}))
+            extra, f = run_profiled("fmt_ekf.yaml", {"mission": str(mission), "out": str(tmp / f"out-{scen}")})
+            m = json.loads((tmp / f"out-{scen}" / "metrics.json").read_text())
+            res[scen] = (m, extra.get("ekf", {}), extra.get("fmt", {}), f)
             e = res[scen][1]
             print(f"{scen} seed {args.seed}: {m['path_length_m']:.0f} m, {e.get('poses')} poses, loop closures "
                   f"{e.get('loop_closures')} (candidates {e.get('loop_candidates_tried')}, refused by the gate "
@@ -80,8 +175,10 @@ def main() -> int:
                 print(f"  {n:6s} ATE {m[f'{n}_ate_rmse_m']:.3f} m ({m[f'{n}_ate_pct']:.3f} % of the path), final "
                       f"{m[f'{n}_final_err_m']:.3f} m (end to end {m[f'{n}_end_to_end_err_m']:.3f} m), "
                       f"{m[f'{n}_iterations']} iterations")
-            print(f"  odometer + gyro ATE {m['baseline_ate_rmse_m']:.2f} m; FMT {res[scen][2].get('fmt_ms')} ms per "
-                  f"registration; EKF step median {e.get('step_ms_median')} ms")
+            print(f"  odometer + gyro ATE {m['baseline_ate_rmse_m']:.2f} m; FMT {f['ms_per_turn']:.1f} CPU ms per "
+                  f"registration (median; wall {res[scen][2].get('fmt_ms')} ms mean); EKF step median "
+                  f"{e.get('step_ms_median')} ms")
+            print("  " + split_line("FMT split", {k: f[f"{k}_ms"] for k in SPLIT}))
         ox = None
         if (Path(args.oxford) / "radar").is_dir():
             mission = tmp / "oxford.mcap"
@@ -93,6 +190,19 @@ def main() -> int:
             print(f"Oxford sample per pair: FMT {100 * ox['pair_trans_err_mean_m']:.1f} cm / "
                   f"{ox['pair_rot_err_mean_deg']:.3f} deg, R-SLAM {100 * rs['pair_trans_err_mean_m']:.1f} cm / "
                   f"{rs['pair_rot_err_mean_deg']:.3f} deg")
+    rad = None
+    if Path(args.radiate).exists():
+        with tempfile.TemporaryDirectory() as tmp:
+            mission = Path(args.radiate)
+            if mission.is_dir():
+                mission = Path(tmp) / "radiate.mcap"
+                subprocess.run(CLI + ["import", "radiate", args.radiate, "-o", str(mission), "--no-progress"],
+                               check=True, capture_output=True)
+            rad = bench_fmt_radiate(mission, args.turns)
+        print(f"RADIATE, {rad['fmt_radiate_turns']} turns through graphs/oxford.yaml: FMT "
+              f"{rad['fmt_radiate_ms_per_turn']} CPU ms per turn (median), ATE {rad['fmt_radiate_ate_m']} m, pairs "
+              f"{rad['fmt_radiate_pair_trans_err_m']} m / {rad['fmt_radiate_pair_rot_err_deg']} deg")
+        print("  " + split_line("FMT split", {k: rad[f"fmt_radiate_{k}_ms"] for k in SPLIT}))
     growth = ekf_growth()
     ns = np.array([n for n, _ in growth])
     ms = np.array([t for _, t in growth])
@@ -107,6 +217,7 @@ def main() -> int:
     print(f"  quadratic fit: {fit[0] * 1e6:.3f} ms per 1000^2 poses^2 + {fit[1] * 1e3:.3f} ms per 1000 poses "
           f"+ {fit[2]:.2f} ms")
     fmt_ms = res["campus-loop"][2].get("fmt_ms", 0.0)
+    fmt_cpu = [res[scen][3]["ms_per_turn"] for scen in ("campus-open", "campus-loop")]
     outdir = Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)
     import matplotlib
@@ -138,6 +249,10 @@ def main() -> int:
         "isam2_ate_loop_m": ml["isam2_ate_rmse_m"],
         "oxford_fmt_trans_err_m": ox and ox["pair_trans_err_mean_m"],
         "oxford_fmt_rot_err_deg": ox and ox["pair_rot_err_mean_deg"],
+        "fmt_campus_ms_per_turn": round(float(np.mean(fmt_cpu)), 2),
+        "fmt_radiate_ms_per_turn": rad and rad["fmt_radiate_ms_per_turn"],
+        "fmt_radiate_ate_m": rad and rad["fmt_radiate_ate_m"],
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }))
     return 0
 

@@ -1,0 +1,129 @@
+"""The FMT's shortcuts give the numbers of the plain computations they replace (issue 26).
+
+Each shortcut of impala_slam.fmt.core (the translation's FFTs restricted to the columns its
+low-pass keeps, |fft2| rebuilt from rfft2 within the band's radius, the SNR without a mask,
+the 2 x 2 mean without numpy's strided reduction) is checked against the computation as
+written before: whole spectra with scipy.fft.rfft2 / fft2, numpy's mean and std over a
+boolean mask. Bit for bit, except the translation's surface: numpy's complex64 product of the
+same two numbers can differ in the last bit with the arrays' sizes (seen on 256 x 64 against
+256 x 129 spectra; on the 512 x 512 RADIATE turns every registration came out bit-identical),
+so it is compared to float32 rounding and the peak it gives to 1e-4 cell. Images: a synthetic
+world rendered at two poses (impala_slam.synthetic) and seeded noise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+import scipy.fft
+
+from impala_flow.msgs import Grid
+from impala_slam.fmt import core
+from impala_slam.fmt.core import FmtParams, prepare, register
+from impala_slam.synthetic import SyntheticWorld
+
+cv2.setNumThreads(1)
+P = FmtParams(cell_m=0.2, size=256, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, min_wavelength_m=0.8)
+
+
+def _images(p: FmtParams = P) -> tuple[core.FmtImage, core.FmtImage]:
+    rng = np.random.default_rng(3)
+    world = SyntheticWorld.random(rng, (-60, 60), (-60, 60), density_per_m2=0.02, n_clusters=12)
+    a = world.render((0.0, 0.0, 0.0), rng, cell_m=0.1, radius_m=26.0)
+    b = world.render((1.3, -0.4, math.radians(4.0)), rng, cell_m=0.1, radius_m=26.0)
+    return prepare(a, p), prepare(b, p)
+
+
+def _plain_surface(a: np.ndarray, b: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
+    fa, fb = scipy.fft.rfft2(a, workers=1), scipy.fft.rfft2(b, workers=1)
+    cross = fb * np.conj(fa)
+    cross /= np.maximum(np.abs(cross), 1e-12 * max(float(np.abs(cross).max()), 1e-30))
+    if weight is not None:
+        cross *= weight
+    return scipy.fft.irfft2(cross, s=a.shape, workers=1)
+
+
+@pytest.mark.parametrize("min_wavelength_m", [0.8, 1.5, 0.0])
+def test_translation_surface_is_the_whole_spectrum_one(min_wavelength_m):
+    a, b = _images()
+    hann = core._hann(a.image.shape)
+    wa, wb = a.image * hann, core._derotate(b.image, math.radians(-4.0)) * hann
+    weight = core._low_pass(wa.shape[0], P.cell_m, min_wavelength_m)
+    cols, w = core._columns(wa.shape, weight)
+    if min_wavelength_m == 0.8:
+        assert cols == wa.shape[1] // 4  # cut-off at 0.25 cycles / cell (weight 0 there): columns 0 to n / 4 - 1
+    surface = core._correlate(core._rfft2(wa, cols), core._rfft2(wb, cols), w, wa.shape)
+    plain = _plain_surface(wa, wb, weight)
+    np.testing.assert_allclose(surface, plain, rtol=0, atol=1e-6 * float(np.abs(plain).max()))
+    got, want = core._peak(surface), core._peak(plain)
+    np.testing.assert_allclose(got[:2], want[:2], atol=1e-4)
+    assert got[2] == pytest.approx(want[2], rel=1e-4)
+
+
+@pytest.mark.parametrize("min_wavelength_m, coarse", [(0.8, True), (1.5, True), (0.6, False), (0.0, False)])
+@pytest.mark.parametrize("theta_deg", [-4.0, 3.0, 60.0])
+def test_coarse_grid_peak_is_the_whole_surface_one(min_wavelength_m, coarse, theta_deg):
+    # a low-pass 0 beyond 1/4 cycle per cell (min_wavelength_m >= 4 cells): the peak, its Hessian and
+    # SNR from the n/2 x n/2 grid are those of the plain n x n surface (numpy's irfft2 of the whole spectrum)
+    a, b = _images()
+    hann = core._hann(a.image.shape)
+    wa, wb = a.image * hann, core._derotate(b.image, math.radians(theta_deg)) * hann
+    n = wa.shape[0]
+    weight = core._low_pass(n, P.cell_m, min_wavelength_m)
+    cols, w = core._columns(wa.shape, weight, True)
+    rows = core._coarse_rows(n, weight, cols)
+    assert (rows is not None) == coarse
+    if not coarse:
+        return
+    fa, fb = core._rfft2(wa, cols), core._rfft2(wb, cols)
+    got = core._coarse_peak(fa[rows], fb[rows], w[rows], n)
+    want = core._peak(_plain_surface(wa, wb, weight))
+    np.testing.assert_allclose(got[:2], want[:2], atol=1e-4)
+    assert got[2] == pytest.approx(want[2], rel=1e-4)
+    np.testing.assert_allclose(got[3], want[3], rtol=1e-4, atol=1e-6)
+
+
+def test_polar_spectrum_is_the_whole_spectrum_one():
+    a, _ = _images()
+    img, n = a.image, a.image.shape[0]
+    spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * core._hann(img.shape), workers=1))).astype(np.float32)
+    spec *= core._high_pass(n)
+    polar = cv2.warpPolar(spec, (n // 2, P.angles), (float(n // 2), float(n // 2)), n // 2,
+                          cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
+    band = polar[:, int(P.band[0] * n):int(P.band[1] * n)]
+    np.testing.assert_array_equal(core.polar_spectrum(img, P), (band / float(band.std())).astype(np.float32))
+
+
+@pytest.mark.parametrize("iy, ix", [(40, 70), (0, 127), (125, 2)])
+def test_snr_is_the_masked_mean_and_std(iy, ix):
+    c = np.random.default_rng(iy + ix).normal(size=(128, 128)).astype(np.float32)
+    c[iy, ix] = 30.0
+    mask = np.ones(c.shape, bool)
+    mask[np.ix_(np.arange(iy - 3, iy + 4) % 128, np.arange(ix - 3, ix + 4) % 128)] = False
+    rest = c[mask]
+    assert core._snr(c, iy, ix) == float((c[iy, ix] - rest.mean()) / float(rest.std()))
+
+
+def test_two_by_two_mean_is_numpys():
+    data = np.random.default_rng(5).gamma(1.0, 1.0, size=(301, 300)).astype(np.float32)
+    grid = Grid(data, 0.1, -15.05, -15.0)
+    p = FmtParams(cell_m=0.2, size=150)
+    k = 2
+    plain = data[:300, :300].reshape(150, k, 150, k).mean(axis=(1, 3))
+    m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.05) / 0.2 + 75], [0.0, 1.0, (grid.origin_y_m + 0.05) / 0.2 + 75]])
+    ref = cv2.warpAffine(plain, m, (150, 150), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    np.testing.assert_array_equal(core._resample(grid, p), ref)
+
+
+def test_older_spectrum_computed_once_per_image():
+    a, b = _images()
+    r1 = register(a, b, P)
+    assert len(a.spectra) == 1
+    cached = next(iter(a.spectra.values()))
+    r2 = register(a, b, P)
+    assert next(iter(a.spectra.values())) is cached
+    assert (r1.x_m, r1.y_m, r1.theta_rad) == (r2.x_m, r2.y_m, r2.theta_rad)
+    assert r1.ok and abs(r1.x_m - 1.3) < 0.2 and abs(r1.y_m + 0.4) < 0.2 and abs(math.degrees(r1.theta_rad) - 4) < 0.5
