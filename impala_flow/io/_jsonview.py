@@ -42,6 +42,14 @@ def _nested(x: Any) -> Any:
 
 
 def _plain(v: Any, max_array: int) -> Any:
+    t = type(v)
+    if t in _AS_IS:  # the common exact types first, each as the chain below would give it
+        return v
+    if t is float:
+        return v if v - v == 0.0 else None  # x - x is 0 for a finite x, NaN for NaN and +-inf
+    fields = _fields.get(t)
+    if fields is not None:
+        return {n: _plain(getattr(v, n), max_array) for n in fields}
     if isinstance(v, np.ndarray):
         if v.size <= max_array and v.dtype.kind in "biuf":
             return _nested(v.tolist())
@@ -53,7 +61,10 @@ def _plain(v: Any, max_array: int) -> Any:
     if isinstance(v, np.integer):
         return int(v)
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _plain(getattr(v, f.name), max_array) for f in dataclasses.fields(v)}
+        names = tuple(f.name for f in dataclasses.fields(v))
+        if len(_fields) < 4096:
+            _fields[t] = names
+        return {n: _plain(getattr(v, n), max_array) for n in names}
     if isinstance(v, (list, tuple)):
         return [_plain(x, max_array) for x in v]
     if isinstance(v, dict):
@@ -61,6 +72,10 @@ def _plain(v: Any, max_array: int) -> Any:
     if isinstance(v, bytes):
         return {"bytes": len(v)}
     return v
+
+
+_AS_IS = frozenset({int, str, bool, type(None)})
+_fields: dict[type, tuple[str, ...]] = {}  # dataclass type -> its field names
 
 
 def to_json(value: Any, max_array: int = MAX_ARRAY) -> dict[str, Any]:

@@ -204,6 +204,7 @@ class MissionWriter:
         try:
             self._mcap.finish()
         finally:
+            self._mcap.close()
             self._file.close()
 
     def __enter__(self) -> MissionWriter:

@@ -4,6 +4,7 @@ time-ordered beam and truth stream, the import report and the one-line errors.""
 from __future__ import annotations
 
 import csv
+import functools
 import heapq
 import io
 import math
@@ -287,8 +288,22 @@ def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
     beam of the project carries linear power (the simulator's unit), so one graph serves
     simulated and real missions. ``db_per_count`` must be in (0, :data:`DB_PER_COUNT_MAX`]."""
     db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
-    db = np.rint(np.asarray(power, np.float64) * 255.0) * db_per_count  # the integer count, exactly
+    counts = np.rint(np.asarray(power, np.float64) * 255.0)  # the integer count, exactly
+    if counts.size > 256 and counts.min() >= 0.0 and counts.max() <= 255.0:
+        # 256 powers looked up: the same float64 expression per count, not one per pixel
+        table = _power_table(float(db_per_count))
+        return table[counts.astype(np.intp)]
+    db = counts * db_per_count
     return np.power(10.0, db / 10.0).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=16)
+def _power_table(db_per_count: float) -> np.ndarray:
+    """float32 linear power of the counts 0..255, computed each as :func:`counts_to_power` does."""
+    db = np.arange(256, dtype=np.float64) * db_per_count
+    table = np.power(10.0, db / 10.0).astype(np.float32)
+    table.flags.writeable = False
+    return table
 
 
 def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
