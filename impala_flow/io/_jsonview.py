@@ -152,13 +152,17 @@ def _encoder(t: type, max_array: int) -> Any:
                 "    out = " + " + ".join(f"{k!r} + text(vals[{i}], m)" for i, k in enumerate(keys)) + ' + "}"',
                 "    if all([type(x) in scalars for x in vals]):", "        cell[0] = (vals, out)",
                 "    return out"]
-    elif names:
-        src.append("    return " + " + ".join(f"{k!r} + text(v.{n}, m)" for k, n in zip(keys, names, strict=True))
-                   + ' + "}"')
+    elif names:  # a float or int field's common case inline, anything else (NaN too) through _text
+        inline = {float: "(fr(@) if type(@) is float and @ - @ == 0.0 else text(@, m))",
+                  int: "(ir(@) if type(@) is int else text(@, m))"}
+        src.append("    return " + " + ".join(
+            f"{k!r} + " + inline.get(hints.get(n), "text(@, m)").replace("@", f"v.{n}")
+            for k, n in zip(keys, names, strict=True)) + ' + "}"')
     else:
         src.append('    return "{}"')
     scope: dict[str, Any] = {"text": _text, "m": max_array, "get": operator.attrgetter(*names) if names else None,
-                             "cell": [None], "is_": operator.is_, "scalars": _SCALARS}
+                             "cell": [None], "is_": operator.is_, "scalars": _SCALARS,
+                             "fr": float.__repr__, "ir": int.__repr__}
     if memo and len(names) == 1:
         scope["get"] = lambda v, n=names[0]: (getattr(v, n),)
     exec("\n".join(src), scope)  # noqa: S102 - generated from field names (identifiers) only
