@@ -72,7 +72,7 @@ class Codec(typing.Protocol):
 
 # --- arrays ------------------------------------------------------------------------------
 
-_dtype_cache: dict[str, np.dtype] = {}
+_dtype_cache: dict[bytes, np.dtype] = {}  # dtype.str (ASCII) -> dtype
 _header_cache: dict[tuple[np.dtype, tuple[int, ...]], bytes] = {}
 
 
@@ -104,27 +104,45 @@ def _encode_array(a: Any, parts: list, where: str = "array") -> None:
         parts.append(a.reshape(-1).view(np.uint8).data)
 
 
+_empty_cache: dict[tuple[np.dtype, tuple[int, ...]], np.ndarray] = {}
+
+
+def _parse_dtype(ds: bytes) -> np.dtype:
+    try:
+        dt = np.dtype(ds.decode("ascii"))
+    except (TypeError, UnicodeDecodeError) as e:
+        raise CodecError(f"bad dtype {ds!r} in payload") from e
+    _check_dtype(dt, "payload")
+    if len(_dtype_cache) < 4096:
+        _dtype_cache[ds] = dt
+    return dt
+
+
 def _decode_array(buf: Any, off: int) -> tuple[np.ndarray, int]:
     n = buf[off]
-    ds = bytes(buf[off + 1 : off + 1 + n]).decode("ascii")
-    off += 1 + n
+    ds = bytes(buf[off + 1 : off + 1 + n])
     dt = _dtype_cache.get(ds)
     if dt is None:
-        try:
-            dt = np.dtype(ds)
-        except TypeError as e:
-            raise CodecError(f"bad dtype {ds!r} in payload") from e
-        _check_dtype(dt, "payload")
-        _dtype_cache[ds] = dt
+        dt = _parse_dtype(ds)
+    off += 1 + n
     ndim = buf[off]
-    shape = _SHAPE[ndim].unpack_from(buf, off + 1)
-    off += 1 + 8 * ndim
-    count = 1
-    for s in shape:
-        count *= s
-    if count == 0:
-        arr = np.empty(shape, dt)
-        arr.flags.writeable = False
+    if ndim == 1:
+        count = _U64.unpack_from(buf, off + 1)[0]
+        off += 9
+        shape: tuple[int, ...] = (count,)
+    else:
+        shape = _SHAPE[ndim].unpack_from(buf, off + 1)
+        off += 1 + 8 * ndim
+        count = 1
+        for s in shape:
+            count *= s
+    if count == 0:  # one shared read-only empty array per dtype and shape
+        arr = _empty_cache.get((dt, shape))
+        if arr is None:
+            arr = np.empty(shape, dt)
+            arr.flags.writeable = False
+            if len(_empty_cache) < 4096:
+                _empty_cache[(dt, shape)] = arr
         return arr, off
     nbytes = count * dt.itemsize
     if off + nbytes > len(buf):
@@ -250,9 +268,7 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
         raise CodecError(f"{cls!r} is not a @message dataclass")
     comp = cache[cls] = _Compiled()  # registered first: recursive types resolve lazily
     hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
     enc_steps: list[Encoder] = []
-    dec_steps: list[Callable[[Any, int, list], int]] = []
     comp.fields = []
     run: list[tuple[str, str]] = []  # pending fixed-size scalars (name, struct char)
 
@@ -265,12 +281,6 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
             enc_steps.append(lambda o, parts: parts.append(s.pack(get(o))))
         else:
             enc_steps.append(lambda o, parts: parts.append(s.pack(*get(o))))
-
-        def dstep(buf: Any, off: int, out: list) -> int:
-            out.extend(s.unpack_from(buf, off))
-            return off + s.size
-
-        dec_steps.append(dstep)
         run.clear()
 
     for f in dataclasses.fields(cls):
@@ -295,38 +305,104 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
             enc, dec = _optional(enc, dec)
         get1 = attrgetter(f.name)
         enc_steps.append(lambda o, parts, e=enc, g=get1: e(g(o), parts))
-
-        def dstep1(buf: Any, off: int, out: list, d: Decoder = dec) -> int:
-            v, off = d(buf, off)
-            out.append(v)
-            return off
-
-        dec_steps.append(dstep1)
     flush_run()
 
-    enc_steps_t, dec_steps_t = tuple(enc_steps), tuple(dec_steps)
-    new = object.__new__
-    use_dict = "__dict__" in dir(cls) and not getattr(cls, "__slots__", None)
-    setattr_ = object.__setattr__
+    enc_steps_t = tuple(enc_steps)
 
     def encode_into(obj: Any, parts: list) -> None:
         for step in enc_steps_t:
             step(obj, parts)
 
-    def decode_from(buf: Any, off: int) -> tuple[Any, int]:
-        values: list = []
-        for step in dec_steps_t:
-            off = step(buf, off, values)
-        obj = new(cls)
-        if use_dict:
-            obj.__dict__.update(zip(names, values, strict=True))
-        else:
-            for n, v in zip(names, values, strict=True):
-                setattr_(obj, n, v)
-        return obj, off
-
+    decode_from = _generate_decoder(cls, cache)
     comp.encode_into, comp.decode_from = encode_into, decode_from
     return comp
+
+
+def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
+    """One generated function decoding ``cls``: scalar runs by one ``unpack_from``, strings
+    and arrays inline, nested messages inlined (a recursive type calls its own decoder)."""
+    env: dict[str, Any] = {"dec_array": _decode_array, "U32": _U32.unpack_from, "U64": _U64.unpack_from,
+                           "new": object.__new__, "setattr_": object.__setattr__}
+    lines: list[str] = []
+    counter = [0]
+
+    def var() -> str:
+        counter[0] += 1
+        return f"v{counter[0]}"
+
+    def leaf(kind: str, sub: type | None, target: str, ind: str, stack: tuple[type, ...]) -> None:
+        if kind == "str":
+            lines.append(f"{ind}n = U32(buf, off)[0]; off += 4")
+            lines.append(f"{ind}{target} = str(buf[off:off + n], 'utf-8'); off += n")
+        elif kind == "bytes":
+            lines.append(f"{ind}n = U64(buf, off)[0]; off += 8")
+            lines.append(f"{ind}{target} = bytes(buf[off:off + n]); off += n")
+        elif kind == "ndarray":
+            lines.append(f"{ind}{target}, off = dec_array(buf, off)")
+        elif kind == "none":
+            lines.append(f"{ind}{target} = None")
+        elif kind == "message":
+            assert sub is not None
+            if sub in stack:  # recursive type: call its decoder (resolved when called)
+                key = f"sub_{counter[0]}"
+                counter[0] += 1
+                env[key] = cache[sub]
+                lines.append(f"{ind}{target}, off = {key}.decode_from(buf, off)")
+            else:
+                message_(sub, target, ind, stack + (sub,))
+        else:  # an optional scalar
+            key = f"S_{kind}"
+            env[key] = struct.Struct("<" + _SCALAR_FMT[kind])
+            lines.append(f"{ind}{target} = {key}.unpack_from(buf, off)[0]; off += {env[key].size}")
+
+    def message_(c: type, target: str, ind: str, stack: tuple[type, ...]) -> None:
+        hints = typing.get_type_hints(c)
+        fields = dataclasses.fields(c)
+        values: list[str] = []
+        run: list[tuple[str, str]] = []
+
+        def flush() -> None:
+            if run:
+                key = f"R_{counter[0]}"
+                counter[0] += 1
+                env[key] = st = struct.Struct("<" + "".join(ch for _, ch in run))
+                names = ", ".join(v for v, _ in run)
+                lines.append(f"{ind}{names}, = {key}.unpack_from(buf, off); off += {st.size}")
+                run.clear()
+
+        for f in fields:
+            kind, optional, sub = _field_kind(c, f, hints[f.name])
+            v = var()
+            values.append(v)
+            if kind in _SCALAR_FMT and not optional:
+                run.append((v, _SCALAR_FMT[kind]))
+                continue
+            flush()
+            if optional:
+                lines.append(f"{ind}if buf[off]:")
+                lines.append(f"{ind}    off += 1")
+                leaf(kind, sub, v, ind + "    ", stack)
+                lines.append(f"{ind}else:")
+                lines.append(f"{ind}    off += 1; {v} = None")
+            else:
+                leaf(kind, sub, v, ind, stack)
+        flush()
+        ckey = f"C_{counter[0]}"
+        counter[0] += 1
+        env[ckey] = c
+        lines.append(f"{ind}{target} = new({ckey})")
+        names = [f.name for f in fields]
+        if "__dict__" in dir(c) and not getattr(c, "__slots__", None):
+            items = ", ".join(f"{n!r}: {v}" for n, v in zip(names, values, strict=True))
+            lines.append(f"{ind}{target}.__dict__.update({{{items}}})")
+        else:
+            for n, v in zip(names, values, strict=True):
+                lines.append(f"{ind}setattr_({target}, {n!r}, {v})")
+
+    message_(cls, "obj", "    ", (cls,))
+    src = "def decode_from(buf, off):\n" + "\n".join(lines) + "\n    return obj, off\n"
+    exec(compile(src, f"<decoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
+    return env["decode_from"]
 
 
 def _schema_json(root: dict[str, Any], definitions: dict[str, Any]) -> bytes:

@@ -24,6 +24,7 @@ import heapq
 import logging
 import os
 import stat
+import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -46,6 +47,9 @@ from ._registry import CodecRegistry
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
 
 log = logging.getLogger(__name__)
+
+_MSG_REC = struct.Struct("<QHIQ")  # a message record after its opcode: length, channel, sequence, log time
+_LEN = struct.Struct("<Q")
 
 
 class Recorded(NamedTuple):
@@ -375,13 +379,18 @@ class MissionReader:
             self._count_loss(ref, wanted, lo, hi)
             return []
         out = []
-        unpack, msg = mf.MSG_HEAD.unpack_from, Opcode.MESSAGE
-        for op, body in mf.iter_records(records):
-            if op != msg:
-                continue
-            cid, seq, t, _ = unpack(body)
-            if cid in wanted and (lo is None or t >= lo) and (hi is None or t < hi):
-                out.append((t, cid, seq, body[22:]))
+        # mf.iter_records inlined: one unpack per record (its length and, for a message, its
+        # head), a payload view only for the messages kept
+        head, length_of, msg = _MSG_REC.unpack_from, _LEN.unpack_from, Opcode.MESSAGE
+        pos, n = 0, len(records)
+        while pos + 9 <= n:
+            if records[pos] == msg:
+                length, cid, seq, t = head(records, pos + 1)
+                if cid in wanted and (lo is None or t >= lo) and (hi is None or t < hi):
+                    out.append((t, cid, seq, records[pos + 31 : pos + 9 + length]))
+            else:
+                length = length_of(records, pos + 1)[0]
+            pos += 9 + length
         return out
 
     def _emit(self, item: tuple[int, int, int, Any], wanted: dict) -> Recorded:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from operator import attrgetter
 from typing import Any, TypeVar
 
 import numpy as np
@@ -115,10 +116,25 @@ def _freezer_for(t: type) -> Callable[[Any], None]:
         return _noop
     if dataclasses.is_dataclass(t):
         names = tuple(f.name for f in dataclasses.fields(t))
+        ndarray, immutable = np.ndarray, frozenset(_IMMUTABLE)
+        if any("__slots__" in k.__dict__ for k in t.__mro__):
+            get = attrgetter(*names) if len(names) > 1 else (lambda o: (getattr(o, names[0]),)) \
+                if names else (lambda o: ())
+
+            def values(obj: Any) -> Any:
+                return get(obj)
+        else:
+            def values(obj: Any) -> Any:
+                return obj.__dict__.values()  # every field (and any attribute added later)
 
         def freeze_fields(obj: Any) -> None:
-            for n in names:
-                freeze(getattr(obj, n))
+            for v in values(obj):  # the common kinds inline: no call per scalar field
+                c = type(v)
+                if c is ndarray:
+                    if v.flags.writeable:
+                        v.flags.writeable = False
+                elif c not in immutable:
+                    freeze(v)
 
         return freeze_fields
     if issubclass(t, (tuple, list)):

@@ -4,9 +4,12 @@ time-ordered beam and truth stream, the import report and the one-line errors.""
 from __future__ import annotations
 
 import csv
+import functools
 import heapq
 import io
 import math
+import queue
+import threading
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -287,20 +290,82 @@ def counts_to_power(power: np.ndarray, db_per_count: float) -> np.ndarray:
     beam of the project carries linear power (the simulator's unit), so one graph serves
     simulated and real missions. ``db_per_count`` must be in (0, :data:`DB_PER_COUNT_MAX`]."""
     db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
-    db = np.rint(np.asarray(power, np.float64) * 255.0) * db_per_count  # the integer count, exactly
+    counts = np.rint(np.asarray(power, np.float64) * 255.0)  # the integer count, exactly
+    if counts.size > 256 and counts.min() >= 0.0 and counts.max() <= 255.0:
+        # 256 powers looked up: the same float64 expression per count, not one per pixel
+        table = _power_table(float(db_per_count))
+        return table[counts.astype(np.intp)]
+    db = counts * db_per_count
     return np.power(10.0, db / 10.0).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=16)
+def _power_table(db_per_count: float) -> np.ndarray:
+    """float32 linear power of the counts 0..255, computed each as :func:`counts_to_power` does."""
+    db = np.arange(256, dtype=np.float64) * db_per_count
+    table = np.power(10.0, db / 10.0).astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
+#: Scans read and decoded ahead of the one being written (the worker thread's queue).
+READ_AHEAD = 4
+
+
+_Read = tuple["Scan | None", "np.ndarray | None", "BaseException | None"]  # (scan, linear power, error)
+
+
+def _read(ds: NavtechDataset, k: int, db_per_count: float) -> _Read:
+    try:
+        scan = ds.read_scan(k)
+        return scan, counts_to_power(scan.power, db_per_count), None
+    except BaseException as e:  # handed to the consumer, raised there in order
+        return None, None, e
+
+
+def _read_ahead(ds: NavtechDataset, db_per_count: float) -> Iterator[_Read]:
+    """``(scan, linear power, error)`` of each scan in order, read and decoded on a worker
+    thread up to :data:`READ_AHEAD` scans ahead (PNG inflation, Pillow and numpy release the
+    GIL: the second core decodes while the caller encodes and writes). Each scan is decoded
+    alone, so what comes out never depends on the threads' timing."""
+    n = len(ds.scan_paths)
+    if n < 2:
+        for k in range(n):
+            yield _read(ds, k, db_per_count)
+        return
+    q: queue.Queue = queue.Queue(maxsize=READ_AHEAD)
+    stop = threading.Event()
+
+    def work() -> None:
+        for k in range(n):
+            item = _read(ds, k, db_per_count)
+            while not stop.is_set():
+                try:
+                    q.put(item, timeout=0.1)
+                    break
+                except queue.Full:
+                    continue
+            if stop.is_set():
+                return
+
+    worker = threading.Thread(target=work, name="impala-read-ahead", daemon=True)
+    worker.start()
+    try:
+        for _ in range(n):
+            yield q.get()
+    finally:
+        stop.set()
+        worker.join()
 
 
 def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
            ) -> Iterator[tuple[int, int, str, impala_msgs.RadarBeam]]:
     last_t, noted = np.iinfo(np.int64).min, False
-    for k, path in enumerate(ds.scan_paths):
-        try:
-            scan = ds.read_scan(k)
-        except DatasetError as e:
-            if not skip_bad:
-                raise
-            report.skipped_scans.append(str(e))
+    for (k, path), (scan, power, err) in zip(enumerate(ds.scan_paths), _read_ahead(ds, db_per_count), strict=True):
+        if err is not None:
+            if not isinstance(err, DatasetError) or not skip_bad:
+                raise err
+            report.skipped_scans.append(str(err))
             continue
         # a row whose time does not pass the last one kept (within the scan or after the
         # previous scan) is dropped and counted, the first one named in a note
@@ -330,7 +395,6 @@ def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_coun
         report.beams += rows.size
         if rows.size:
             last_t = int(scan.t_ns[rows[-1]])
-        power = counts_to_power(scan.power, db_per_count)
         chirp = [0] * rows.size if scan.chirp is None else scan.chirp[rows].tolist()
         for i, ti, az, ch in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(), chirp,
                                  strict=True):
