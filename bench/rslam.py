@@ -38,8 +38,8 @@ from impala_flow import (  # noqa: E402
     Session,  # noqa: E402
     Source,
 )
-from impala_flow.msgs import Grid, Pose2D, YawRate  # noqa: E402
-from impala_msgs import Speed  # noqa: E402
+from impala_flow.msgs import Grid, Pose2D  # noqa: E402
+from impala_msgs import Speed, YawRate  # noqa: E402
 
 GRAPH_SIM = """
 name: rslam-bench
