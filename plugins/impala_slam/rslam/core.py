@@ -158,10 +158,12 @@ class RSlamCore:
             k = int(self.cfg.db_floor_quantile * (sub.size - 1))
             floor = float(np.partition(sub, k)[k])
         # in the log domain (a subnormal floor would overflow p / floor in float32)
-        a = cv2.log(np.maximum(p, np.float32(floor)))
+        a = np.maximum(p, np.float32(floor))
+        cv2.log(a, dst=a)  # in place: one image allocated, not two
         a -= np.float32(math.log(floor))
         a *= np.float32(10.0 / math.log(10.0))
-        a[~(p > 0)] = 0.0
+        unseen = np.greater(p, 0.0)
+        a[np.logical_not(unseen, out=unseen)] = 0.0
         return Grid(a, grid.cell_m, grid.origin_x_m, grid.origin_y_m, grid.frame, grid.pose)
 
     # --- one turn ----------------------------------------------------------------------
@@ -231,7 +233,8 @@ class RSlamCore:
         # is defined (NaN outside the panoramic) and alpha > 0: TileMap.add merges only those
         both = self._interleaved(grid)
         both[..., 0] = grid.data
-        amp, alpha = cv2.split(warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, data=both))
+        warped = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, data=both)
+        amp, alpha = warped[..., 0], warped[..., 1]  # views: cv2.split would copy both channels
         np.copyto(alpha, np.float32(0.0), where=np.isnan(amp))
         weighted = np.multiply(alpha, amp, out=amp)  # NaN where not covered: masked by alpha = 0
         tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else alpha > 0)
