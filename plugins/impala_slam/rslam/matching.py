@@ -86,7 +86,8 @@ def contrast(img: np.ndarray, window_cells: int, support: np.ndarray | None = No
     mean = cv2.blur(img * support, (k, k), borderType=cv2.BORDER_CONSTANT)
     weight = cv2.blur(support, (k, k), borderType=cv2.BORDER_CONSTANT)
     np.divide(mean, weight, out=mean, where=weight > 1e-3)
-    return (img - mean) * support
+    np.subtract(img, mean, out=mean)  # in place: no temporary image
+    return np.multiply(mean, support, out=mean)
 
 
 def _finite(a: np.ndarray) -> np.ndarray:
