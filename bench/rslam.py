@@ -8,8 +8,18 @@ turn of R-SLAM (correlation + update) and of the processing chain (every compone
 the simulator), ATE RMSE and final drift beside the baseline's; then the Oxford scan-pair
 errors of graphs/oxford.yaml on the real sample (imported with ``impala-flow import oxford``).
 ``--synthetic`` replaces the radar simulator by impala_slam.synthetic's point world.
-The last line is one JSON object with unit-named keys. Targets: R-SLAM <= 100 ms/turn,
-ATE <= 1.0 m, drift <= 0.5 %.
+``--radiate MCAP`` (e.g. the first 400 scans of RADIATE's Edinburgh drive, imported) runs
+graphs/oxford.yaml on it and kiss-icp (graphs/kiss_icp_navtech.yaml) on the same scans:
+:func:`bench_radiate`, which bench/speed.py can call.
+
+Times are thread CPU (``time.thread_time`` around each component's process: far less inflated
+than wall time on a loaded machine), split per R-SLAM stage: amplitude (dB image), prepare (map
+windows, prepared panoramics, window DFTs), coarse and fine (the rotations of each level),
+update (eq. 6). The peak RSS and the map's size are printed; the last line is one JSON
+object with unit-named keys (rslam_beynes_ms_per_turn, rslam_beynes_ate_m,
+rslam_beynes_drift_pct, rslam_map_mb, rslam_radiate_ms_per_turn, rslam_radiate_ate_m,
+kissicp_radiate_ms_per_scan, peak_rss_mb, ...). Targets (issue 26): R-SLAM <= 30 ms/turn on
+Beynes, <= 40 ms/turn on RADIATE; ATE <= 1.0 m, drift <= 0.5 % on Beynes.
 """
 
 from __future__ import annotations
@@ -38,8 +48,8 @@ from impala_flow import (  # noqa: E402
     Session,  # noqa: E402
     Source,
 )
-from impala_flow.msgs import Grid, Pose2D, YawRate  # noqa: E402
-from impala_msgs import Speed  # noqa: E402
+from impala_flow.msgs import Grid, Pose2D  # noqa: E402
+from impala_msgs import Speed, YawRate  # noqa: E402
 
 GRAPH_SIM = """
 name: rslam-bench
@@ -99,16 +109,40 @@ class SyntheticMission(Source):
         return synthetic_mission(self.turns)
 
 
-def _timed(comp: Component, acc: dict[str, float]) -> None:
-    """Accumulate the wall time of ``comp.process`` into ``acc[comp.name]``."""
+def _timed(comp: Component, acc: dict[str, float], cpu: dict[str, float] | None = None) -> None:
+    """Accumulate the wall time of ``comp.process`` into ``acc[comp.name]`` (and its thread
+    CPU time into ``cpu[comp.name]``: what a loaded machine does not inflate)."""
     inner = comp.process
 
     def process(t: int) -> None:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         inner(t)
         acc[comp.name] = acc.get(comp.name, 0.0) + time.perf_counter() - t0
+        if cpu is not None:
+            cpu[comp.name] = cpu.get(comp.name, 0.0) + time.thread_time() - c0
 
     comp.process = process  # type: ignore[method-assign]
+
+
+STAGES = ("amplitude", "prepare", "coarse", "fine", "update")
+
+
+def _split(core, turns: int) -> dict[str, float]:  # type: ignore[no-untyped-def]
+    """R-SLAM's thread CPU per stage (ms per turn): amplitude, prepare, coarse, fine, update."""
+    return {f"{k}_cpu_ms_per_turn": 1e3 * core.split.get(k, 0.0) / max(1, turns) for k in STAGES}
+
+
+def _split_line(split: dict[str, float]) -> str:
+    total = sum(split[f"{k}_cpu_ms_per_turn"] for k in STAGES)
+    return f"R-SLAM {total:.1f} ms CPU/turn = " + " + ".join(f"{k} {split[f'{k}_cpu_ms_per_turn']:.1f}"
+                                                            for k in STAGES)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set of this process (ru_maxrss is in KiB on Linux)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dict:
@@ -128,9 +162,10 @@ def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dic
                                                         "report": report, "seed": seed}
     net = session.build(session.load_text(text))
     acc: dict[str, float] = {}
+    cpu: dict[str, float] = {}
     for c in net.components.values():
         if c.name != "mission":
-            _timed(c, acc)
+            _timed(c, acc, cpu)
     t0 = time.perf_counter()
     session.run(net, speed="max")
     wall = time.perf_counter() - t0
@@ -141,6 +176,8 @@ def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dic
         "source": "synthetic" if synthetic else "radar.Simulator",
         "turns": slam.turns,
         "rslam_ms_per_turn": 1e3 * acc.get("slam", 0.0) / n,
+        "rslam_cpu_ms_per_turn": 1e3 * cpu.get("slam", 0.0) / n,
+        **_split(slam.core, n),
         "rslam_match_ms_per_turn": 1e3 * slam.core.match_s / n,
         "rslam_update_ms_per_turn": 1e3 * slam.core.update_s / n,
         "chain_ms_per_turn": 1e3 * sum(acc.values()) / n,
@@ -150,6 +187,7 @@ def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dic
         "path_length_m": f.get("path_length_m"),
         "baseline_ate_rmse_m": f.get("baseline_ate_rmse_m"), "baseline_drift_pct": f.get("baseline_drift_pct"),
         "map_mb": round(slam.core.map.nbytes / 2 ** 20, 1) if slam.core.map else 0.0,
+        "map_tiles_dropped": slam.core.map.dropped_tiles if slam.core.map else 0,
     }
 
 
@@ -223,6 +261,51 @@ def run_radiate(report: str) -> dict:
             "radiate_pairs": len(fwd)}
 
 
+def _run_graph(graph: str, mission: str | Path, out: Path, turns: int | None) -> tuple:
+    """Build graphs/GRAPH on ``mission`` as ``impala-flow run`` does (first ``turns`` turns at
+    4 Hz when given), time every component but the replayer (wall and thread CPU), run it."""
+    out.mkdir(parents=True, exist_ok=True)
+    session = Session()
+    spec = session.load(ROOT / "graphs" / graph, [f"mission.end_s={turns / 4.0}"] if turns else [],
+                        variables={"mission": str(mission), "out": str(out)})
+    net = session.build(spec)
+    acc: dict[str, float] = {}
+    cpu: dict[str, float] = {}
+    for c in net.components.values():
+        if c.name != "mission":
+            _timed(c, acc, cpu)
+    session.run(net, speed="max")
+    return net, acc, cpu
+
+
+def bench_radiate(mission_path: str | Path, turns: int | None = None, out: str | Path | None = None) -> dict:
+    """R-SLAM through graphs/oxford.yaml on an imported RADIATE mission (e.g. the first 400 scans
+    of the Edinburgh drive) beside kiss-icp through graphs/kiss_icp_navtech.yaml on the same
+    scans: R-SLAM's CPU per turn and its split per stage, ATE (rigid alignment, as the graph's
+    evaluator reports it), map size; kiss-icp's CPU per scan (slam.KissIcp, and with
+    radar.PeakExtractor that feeds it), its ATE; the peak RSS. ``turns``: only the first ones."""
+    import tempfile
+
+    base = Path(out) if out else Path(tempfile.mkdtemp(prefix="bench-rslam-radiate-"))
+    net, acc, cpu = _run_graph("oxford.yaml", mission_path, base / "rslam", turns)
+    slam = net.components["slam"]
+    n = max(1, slam.turns)
+    res: dict = {"rslam_radiate_turns": slam.turns,
+                 "rslam_radiate_ms_per_turn": 1e3 * cpu.get("slam", 0.0) / n,
+                 "rslam_radiate_wall_ms_per_turn": 1e3 * acc.get("slam", 0.0) / n,
+                 **{f"rslam_radiate_{k}": v for k, v in _split(slam.core, n).items()},
+                 "rslam_radiate_ate_m": net.components["eval"].figures.get("ate_rmse_m"),
+                 "rslam_radiate_map_mb": slam.core.map.nbytes / 2 ** 20 if slam.core.map else 0.0,
+                 "rslam_radiate_map_tiles_dropped": slam.core.map.dropped_tiles if slam.core.map else 0}
+    net, acc, cpu = _run_graph("kiss_icp_navtech.yaml", mission_path, base / "kissicp", turns)
+    k = max(1, net.components["kissicp"].turns)
+    res.update({"kissicp_radiate_ms_per_scan": 1e3 * cpu.get("kissicp", 0.0) / k,
+                "kissicp_radiate_with_peaks_ms_per_scan": 1e3 * (cpu.get("kissicp", 0.0) + cpu.get("points", 0.0)) / k,
+                "kissicp_radiate_ate_m": net.components["eval"].figures.get("ate_rmse_m"),
+                "peak_rss_mb": peak_rss_mb()})
+    return res
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--turns", type=int, default=120, help="antenna turns (the full Beynes mission: 662)")
@@ -230,10 +313,25 @@ def main() -> None:
     ap.add_argument("--report", default="out/bench-rslam", help="evaluator report folder")
     ap.add_argument("--no-oxford", action="store_true")
     ap.add_argument("--seed", type=int, default=-1, help="seed of the simulated world and noise (-1: the scenario's)")
+    ap.add_argument("--radiate", metavar="MCAP", help="also an imported RADIATE mission through graphs/oxford.yaml, "
+                    "beside kiss-icp (graphs/kiss_icp_navtech.yaml) on the same scans")
+    ap.add_argument("--radiate-turns", type=int, default=0, help="only the first turns of --radiate (0: all)")
+    ap.add_argument("--no-beynes", action="store_true", help="skip the simulated mission")
     args = ap.parse_args()
-    out = run_mission(args.turns, args.synthetic, args.report, args.seed)
-    for k, v in out.items():
-        print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
+    out: dict = {}
+    if not args.no_beynes:
+        out = run_mission(args.turns, args.synthetic, args.report, args.seed)
+        for k, v in out.items():
+            print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
+        print(_split_line(out))
+        out.update({"rslam_beynes_ms_per_turn": out["rslam_cpu_ms_per_turn"], "rslam_beynes_ate_m": out["ate_rmse_m"],
+                    "rslam_beynes_drift_pct": out["drift_pct"], "rslam_map_mb": out["map_mb"]})
+    if args.radiate:
+        ra = bench_radiate(args.radiate, args.radiate_turns or None, args.report + "-radiate-drive")
+        for k, v in ra.items():
+            print(f"{k:40s} {v:.3f}" if isinstance(v, float) else f"{k:40s} {v}")
+        print(_split_line({k.removeprefix("rslam_radiate_"): v for k, v in ra.items()}))
+        out.update(ra)
     if not args.no_oxford:
         ox = run_oxford(args.report)
         for k, v in ox.items():
@@ -243,6 +341,7 @@ def main() -> None:
         for k, v in ra.items():
             print(f"{k:28s} {v:.4f}" if isinstance(v, float) else f"{k:28s} {v}")
         out.update(ra)
+    out["peak_rss_mb"] = peak_rss_mb()
     print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in out.items()}))
 
 

@@ -65,6 +65,7 @@ class TileMap:
         self.tile_cells = max(8, int(round(tile_m / cell_m)))
         self.weighted_sum: dict[tuple[int, int], np.ndarray] = {}  # sum_i alpha(d_i) A_i
         self.count: dict[tuple[int, int], np.ndarray] = {}  # normaliser: sum of alpha, or N
+        self.dropped_tiles = 0  # tiles forgotten by :meth:`bound`
 
     # --- geometry ------------------------------------------------------------------
     def index_of(self, x_m: float, y_m: float) -> tuple[int, int]:
@@ -90,6 +91,22 @@ class TileMap:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.weighted_sum.values()) + sum(a.nbytes for a in self.count.values())
 
+    def bound(self, max_bytes: int, x_m: float, y_m: float) -> int:
+        """Drop the tiles farthest from (x_m, y_m) (their centres) until the map holds at most
+        ``max_bytes``; returns how many were dropped (also counted in ``dropped_tiles``). A
+        dropped place is mapped anew when revisited, as if never seen."""
+        per_tile = 2 * 4 * self.tile_cells * self.tile_cells  # two float32 layers
+        excess = len(self.count) - max(0, max_bytes // per_tile)
+        if excess <= 0:
+            return 0
+        scale = self.tile_cells * self.cell_m
+        centre = 0.5 * (self.tile_cells - 1) * self.cell_m  # cell (ix, iy) is centred at (ix, iy) * cell_m
+        keys = sorted(self.count, key=lambda k: math.hypot(k[0] * scale + centre - x_m, k[1] * scale + centre - y_m))
+        for key in keys[len(keys) - excess:]:
+            del self.count[key], self.weighted_sum[key]
+        self.dropped_tiles += excess
+        return excess
+
     @property
     def empty(self) -> bool:
         return not self.count
@@ -98,18 +115,23 @@ class TileMap:
     def add(self, ix0: int, iy0: int, weighted_amplitude: np.ndarray, covered: np.ndarray) -> None:
         """Accumulate alpha(d) A over a window starting at map cell (ix0, iy0); ``covered``
         is what the panoramic adds to each cell's normaliser: a bool mask (N, the number of
-        panoramics that saw the cell) or the weights alpha(d) themselves (sum of alpha)."""
+        panoramics that saw the cell) or the weights alpha(d) themselves (sum of alpha).
+        Only the cells where ``covered`` > 0 are merged (``weighted_amplitude`` is not read
+        elsewhere: it may be NaN there)."""
         ny, nx = weighted_amplitude.shape
         n = self.tile_cells
         for key, win, tile in self._tiles(ix0, iy0, nx, ny):
             cov = covered[win]
-            if not cov.any():
+            seen = cov > 0
+            if not seen.any():
                 continue
             if key not in self.count:
                 self.weighted_sum[key] = np.zeros((n, n), np.float32)
                 self.count[key] = np.zeros((n, n), np.float32)
-            self.weighted_sum[key][tile] += np.where(cov > 0, weighted_amplitude[win], 0.0)
-            self.count[key][tile] += cov
+            ws = self.weighted_sum[key][tile]
+            np.add(ws, weighted_amplitude[win], out=ws, where=seen)  # cells not covered may hold NaN
+            cnt = self.count[key][tile]
+            np.add(cnt, cov, out=cnt, casting="unsafe")
 
     def crop(self, ix0: int, iy0: int, nx: int, ny: int) -> np.ndarray:
         """M(x, y) = sum_i alpha(d_i) A_i(x, y) / normaliser over a window (eq. 6); 0 where unmapped."""

@@ -66,3 +66,47 @@ def test_the_component_takes_map_update():
     assert slam.core.cfg.map_update == "paper"
     with pytest.raises(ValueError):
         RSlam("slam", map_update="median")
+
+
+def test_map_bytes_stay_within_the_bound_over_a_long_drive():
+    """A 1 km straight drive over a textured world: with ``map_max_mb`` the map never holds
+    more than the bound (two float32 layers per tile), the tiles farthest from the vehicle
+    are the ones dropped (counted), and since matching only reads the map around the
+    vehicle, the poses and the tiles kept are exactly those of the same run unbounded."""
+    import cv2
+
+    cell, radius, step_m, bound_mb = 0.5, 30.0, 20.0, 0.25
+    rng = np.random.default_rng(3)
+    world = cv2.GaussianBlur(rng.random((200, 2200), dtype=np.float32), (0, 0), 2.0) + 1.0  # 100 m x 1.1 km
+    y0, x0, h = 100, 80, int(round(radius / cell))  # world cell of (0, 0) m; panoramic half-width in cells
+    tile_bytes = 2 * 4 * 32 * 32  # tile_m / cell = 32 cells a side
+    limit = int(bound_mb * 2 ** 20)
+    runs = {}
+    for bound in (bound_mb, 0.0):
+        cfg = RSlamConfig(intensity="linear", map_cell_m=cell, tile_m=16.0, range_min_m=0.0, range_max_m=radius,
+                          map_max_mb=bound)
+        cfg.match.match_cell_m, cfg.match.match_range_m, cfg.match.contrast_m = 1.0, 25.0, 3.0
+        core = RSlamCore(cfg)
+        poses, created = [], set()
+        for k in range(51):
+            c = x0 + int(round(step_m * k / cell))
+            g = Grid(world[y0 - h: y0 + h + 1, c - h: c + h + 1].copy(), cell, -radius, -radius, "vehicle")
+            poses.append(core.step(k * 250_000_000, g, (step_m * k, 0.0, 0.0))[0])
+            created |= set(core.map.count)
+            if bound:
+                assert core.map.nbytes <= limit
+        runs[bound] = core, poses, created
+    (bounded, poses, created), (unbounded, poses_full, _) = runs[bound_mb], runs[0.0]
+    tm, full = bounded.map, unbounded.map
+    assert tm.nbytes == tm.n_tiles * tile_bytes == (limit // tile_bytes) * tile_bytes
+    assert full.nbytes > 5 * limit and full.dropped_tiles == 0
+    assert tm.dropped_tiles == len(created) - tm.n_tiles == full.n_tiles - tm.n_tiles
+    assert poses == poses_full
+    for key in tm.count:
+        assert np.array_equal(tm.weighted_sum[key], full.weighted_sum[key])
+        assert np.array_equal(tm.count[key], full.count[key])
+    x_end = poses[-1][0]
+    dist = {key: math.hypot((key[0] * 32 + 15.5) * cell - x_end, (key[1] * 32 + 15.5) * cell) for key in full.count}
+    # the near tiles are kept (what matching reads), the far ones behind dropped
+    assert {key for key, d in dist.items() if d < 50.0} <= set(tm.count)
+    assert not {key for key, d in dist.items() if d > 110.0} & set(tm.count)

@@ -53,6 +53,8 @@ class RSlam(Component):
                        doc="eq. (6) normaliser: sum alpha (weighted mean), N images (the paper), N per cell")
     map_cell_m = Param(float, default=0.0, ge=0, doc="map cell (0: the panoramic's)")
     tile_m = Param(float, default=64.0, gt=0, doc="side of the map tiles")
+    map_max_mb = Param(float, default=48.0, ge=0,
+                       doc="bound of the map's memory (MiB): the tiles farthest from the vehicle are dropped (0: none)")
     aperture_deg = Param(float, default=4.0, gt=0, doc="antenna aperture for alpha(d) of eq. (6)")
     resolution_m = Param(float, default=0.75, gt=0, doc="range resolution for alpha(d) of eq. (6)")
     range_min_m = Param(float, default=3.0, ge=0, doc="blind range: not merged")
@@ -64,7 +66,8 @@ class RSlam(Component):
         self.core = RSlamCore(RSlamConfig(mp, self.map_cell_m, self.tile_m, self.aperture_deg,
                                           self.resolution_m, self.range_min_m, self.range_max_m,
                                           intensity=self.intensity, db_floor=self.db_floor,
-                                          db_floor_quantile=self.db_floor_quantile, map_update=self.map_update))
+                                          db_floor_quantile=self.db_floor_quantile, map_update=self.map_update,
+                                          map_max_mb=self.map_max_mb))
         self.turns = 0
         self.empty_images = 0
         self._predicted: Pose | None = None  # the motion model's chained trajectory
@@ -114,6 +117,9 @@ class RSlam(Component):
             "empty_images": self.empty_images,
             "match_ms_per_turn": round(1e3 * core.match_s / self.turns, 2),
             "update_ms_per_turn": round(1e3 * core.update_s / self.turns, 2),
+            # thread CPU per stage (profile-derived split of match + update)
+            **{f"{k}_cpu_ms_per_turn": round(1e3 * v / self.turns, 2) for k, v in core.split.items()},
             "map_tiles": tm.n_tiles if tm else 0,
+            "map_tiles_dropped": tm.dropped_tiles if tm else 0,
             "map_mb": round((tm.nbytes if tm else 0) / 2 ** 20, 1),
         }

@@ -76,6 +76,7 @@ class RSlamConfig:
     db_floor: float = 0.0  # floor of the dB scale (the grid's unit); 0: db_floor_quantile of each image
     db_floor_quantile: float = 0.001  # quantile of the observed cells taken as 0 dB when db_floor is 0
     map_update: str = "weighted"  # eq. (6) normaliser: "weighted" sum alpha, "paper" N images, "count" per cell
+    map_max_mb: float = 0.0  # bound of the map's tiles (MiB): the farthest from the vehicle dropped; 0: none
 
 
 class RSlamCore:
@@ -90,8 +91,10 @@ class RSlamCore:
         self.failures = 0
         self.match_s = 0.0
         self.update_s = 0.0
+        # thread CPU seconds per stage: amplitude, prepare, coarse, fine (matching), update
+        self.split: dict[str, float] = {}
         self._alpha_key: tuple | None = None
-        self._alpha_grid = np.zeros((0, 0), np.float32)
+        self._both = np.zeros((0, 0, 2), np.float32)
 
     # --- prediction ------------------------------------------------------------------
     def predict(self, t_ns: int, odom: Pose | None) -> Pose:
@@ -155,10 +158,12 @@ class RSlamCore:
             k = int(self.cfg.db_floor_quantile * (sub.size - 1))
             floor = float(np.partition(sub, k)[k])
         # in the log domain (a subnormal floor would overflow p / floor in float32)
-        a = cv2.log(np.maximum(p, np.float32(floor)))
+        a = np.maximum(p, np.float32(floor))
+        cv2.log(a, dst=a)  # in place: one image allocated, not two
         a -= np.float32(math.log(floor))
         a *= np.float32(10.0 / math.log(10.0))
-        a[~(p > 0)] = 0.0
+        unseen = np.greater(p, 0.0)
+        a[np.logical_not(unseen, out=unseen)] = 0.0
         return Grid(a, grid.cell_m, grid.origin_x_m, grid.origin_y_m, grid.frame, grid.pose)
 
     # --- one turn ----------------------------------------------------------------------
@@ -166,7 +171,9 @@ class RSlamCore:
         """Locate ``grid`` in the map and merge it; return (pose, 3x3 covariance, matched)."""
         if odom is None and grid.pose is not None:
             odom = (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad)
+        c0 = time.thread_time()
         grid = self.amplitude(grid)
+        self.split["amplitude"] = self.split.get("amplitude", 0.0) + time.thread_time() - c0
         if self.map is None:
             self.map = TileMap(self.cfg.map_cell_m or grid.cell_m, self.cfg.tile_m,
                                total_normaliser=self.cfg.map_update == "paper")
@@ -175,7 +182,7 @@ class RSlamCore:
         else:
             pred = self.last_prediction = self.predict(t_ns, odom)
             t0 = time.perf_counter()
-            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns))
+            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns), self.split)
             self.match_s += time.perf_counter() - t0
             ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
             if ok:
@@ -183,22 +190,27 @@ class RSlamCore:
             else:
                 self.failures += 1
                 pose, cov = pred, np.diag([self.cfg.fallback_std_m ** 2] * 2 + [math.radians(1.0) ** 2])
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         self.update_map(grid, pose)
+        if self.cfg.map_max_mb > 0:
+            self.map.bound(int(self.cfg.map_max_mb * 2 ** 20), pose[0], pose[1])
         self.update_s += time.perf_counter() - t0
+        self.split["update"] = self.split.get("update", 0.0) + time.thread_time() - c0
         self.poses.append((t_ns, pose))
         self._last_odom = odom
         return pose, cov, ok
 
-    def _alpha_of(self, grid: Grid) -> np.ndarray:
-        """alpha(d) over the panoramic's own cells (d from the radar at the vehicle origin)."""
+    def _interleaved(self, grid: Grid) -> np.ndarray:
+        """(rows, cols, 2) float32 buffer whose channel 1 is alpha(d) over the panoramic's own
+        cells (d from the radar at the vehicle origin), kept while the grid's geometry is."""
         key = (grid.data.shape, grid.cell_m, grid.origin_x_m, grid.origin_y_m)
         if self._alpha_key != key:
             xs = grid.origin_x_m + grid.cell_m * np.arange(grid.data.shape[1], dtype=np.float64)
             ys = grid.origin_y_m + grid.cell_m * np.arange(grid.data.shape[0], dtype=np.float64)
-            self._alpha_grid = self.alpha(np.hypot(xs[None, :], ys[:, None]))
+            self._both = np.empty(grid.data.shape + (2,), np.float32)
+            self._both[..., 1] = self.alpha(np.hypot(xs[None, :], ys[:, None]))
             self._alpha_key = key
-        return self._alpha_grid
+        return self._both
 
     def update_map(self, grid: Grid, pose: Pose) -> None:
         """Merge the panoramic at ``pose`` into the map (eq. 6).
@@ -215,12 +227,15 @@ class RSlamCore:
         reach = min(self.cfg.range_max_m, math.hypot(half_x, half_y))
         ix0, iy0 = tm.index_of(pose[0] - reach, pose[1] - reach)
         n = int(math.ceil(2.0 * reach / tm.cell_m)) + 2
-        # amplitude and alpha(d) resampled together (alpha is radial around the radar)
-        both = np.dstack([np.asarray(grid.data, np.float32), self._alpha_of(grid)])
+        # amplitude and alpha(d) resampled together (alpha is radial around the radar): one
+        # 2-channel warp (two single-channel warps interpolate with other roundings), its
+        # input interleaved into a buffer holding alpha; a cell is covered where the amplitude
+        # is defined (NaN outside the panoramic) and alpha > 0: TileMap.add merges only those
+        both = self._interleaved(grid)
+        both[..., 0] = grid.data
         warped = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, data=both)
-        amp, alpha = warped[..., 0], warped[..., 1]
-        covered = np.isfinite(amp) & (alpha > 0)
-        alpha = np.where(covered, alpha, np.float32(0.0))
-        weighted = np.where(covered, alpha * amp, np.float32(0.0))
-        tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else covered)
+        amp, alpha = warped[..., 0], warped[..., 1]  # views: cv2.split would copy both channels
+        np.copyto(alpha, np.float32(0.0), where=np.isnan(amp))
+        weighted = np.multiply(alpha, amp, out=amp)  # NaN where not covered: masked by alpha = 0
+        tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else alpha > 0)
         tm.images += 1
