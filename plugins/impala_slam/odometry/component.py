@@ -142,7 +142,7 @@ class DistortionOdometry(Component):
 
     def _add_to_map(self, r: TurnResult) -> None:
         """The previous turn's beams placed along the arc between its pose and this one."""
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         prev = self._last_result
         t_s, az, up, config = self._last_turn
         if prev is None:
@@ -168,7 +168,7 @@ class DistortionOdometry(Component):
         n = np.bincount(flat, minlength=nx * ny).reshape(ny, nx).astype(np.float32)
         tm.add(ix0, iy0, s, n)
         tm.images += 1
-        self.map_s += time.perf_counter() - t0
+        self.map_s += time.thread_time() - t0
 
     def summary(self) -> dict:
         core = getattr(self, "core", None)
@@ -189,4 +189,5 @@ class DistortionOdometry(Component):
             "dropped_turns": self.dropped_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
+            **{f"{k}_ms_per_turn": round(1e3 * v / core.turns, 2) for k, v in core.split_s.items()},
         }
