@@ -114,6 +114,7 @@ class DistortionCore:
         self.intervals: list[float] = []  # recent stamp intervals of one turn (rotation period)
         self.late_stamps = self.missing_turns = 0
         self.beam_times_s = np.zeros(0)  # the newest turn's beams on the turn clock
+        self.up_rel_db = np.zeros((0, 0), np.float32)  # its up image in dB above the beam medians
         self.yaw_acc = 0.0  # rad/s^2, from the last two turns' yaw rates
         self.w_hist: list[tuple[float, float]] = []  # (turn-clock time, filtered yaw rate) of the last turns
 
@@ -200,7 +201,9 @@ class DistortionCore:
             # itself, its beams spread up to the next stamp on import) are spread over one
             t_s = t0 + (t_s - t0) * (full / span)
         tc = time.thread_time()
-        echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
+        rel: list[np.ndarray] = []
+        echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes, up_rel_db=rel)
+        self.up_rel_db = rel[0]
         self.split_s["echoes"] += time.thread_time() - tc
         beta = doppler_beta_s(config) if c.doppler else 0.0
         prev = self.prev

@@ -188,7 +188,7 @@ def trf_cauchy(fun: Callable[[np.ndarray], np.ndarray], x0, f_scale: float, x_sc
         d = scale
         g_h = d * g
         j_h = jac * d
-        u, s, vt = svd(j_h, full_matrices=False)
+        u, s, vt = svd(j_h, full_matrices=False, check_finite=False)  # residuals of finite echoes are finite
         v = vt.T
         uf = u.T.dot(f)
         actual_reduction = -1
