@@ -9,7 +9,8 @@ reckoning from the odometer and gyro beside it, eval.TrajectoryEvaluator against
 Printed per seed: speed and yaw-rate errors (mean, std; truth over 1 s windows centred on
 each estimate), final x / y / rotation errors (first pose aligned), ATE after rigid alignment,
 relative error over 100-800 m segments, the dead reckoning's ATE, and ms per turn of the
-odometry on one core (its own ``step`` timed, the map excluded and printed apart). Then the
+odometry on one core (CPU time of its own ``step``, split into echoes / estimate / search, the map
+excluded and printed apart). Then the
 imported Oxford sample through graphs/odometry_navtech.yaml, with and without the
 range-Doppler compensation; then the RADIATE Edinburgh head (real, 400 turns, GPS truth: ATE of
 positions after a rigid fit, whole head, first and last 200 turns). The parameters were tuned on
@@ -86,12 +87,40 @@ def _radiate(mission: Path, recording: Path) -> dict:
             "best_shift_s": float(shifts[int(np.argmin(shifted))]), "shifted_ate_m": float(min(shifted))}
 
 
+def _split(odo: dict) -> str:
+    """The per-stage split of the odometry's CPU time per turn, as the component counts it."""
+    return (f"{odo.get('odo_ms_per_turn')} ms per turn = echoes {odo.get('echoes_ms_per_turn')} + estimate "
+            f"{odo.get('estimate_ms_per_turn')} + search {odo.get('search_ms_per_turn')} + filter/clock/rest "
+            f"(+ map {odo.get('map_ms_per_turn')} ms)")
+
+
+def bench_radiate(mission_path: str | Path, turns: int | None = None) -> dict:
+    """An imported RADIATE mission (``impala-flow import radiate``) through graphs/odometry_navtech.yaml
+    as a user runs it, its map included (printed apart): CPU ms per turn of the odometry and its split,
+    ATE against the GPS (metrics of eval.TrajectoryEvaluator), peak RSS of the run. ``turns``: only the
+    first ones (the replayer's end_s at 4 Hz)."""
+    import resource
+
+    extra = ("--set", f"mission.end_s={turns / 4.0:.3f}") if turns else ()
+    with tempfile.TemporaryDirectory() as tmp:
+        m, odo = _run("odometry_navtech.yaml", Path(mission_path), Path(tmp) / "out-radiate", *extra)
+    return {"odometry_radiate_ms_per_turn": odo.get("odo_ms_per_turn"),
+            "odometry_radiate_map_ms_per_turn": odo.get("map_ms_per_turn"),
+            "odometry_radiate_echoes_ms_per_turn": odo.get("echoes_ms_per_turn"),
+            "odometry_radiate_estimate_ms_per_turn": odo.get("estimate_ms_per_turn"),
+            "odometry_radiate_search_ms_per_turn": odo.get("search_ms_per_turn"),
+            "odometry_radiate_ate_m": m.get("ate_rmse_m"), "odometry_radiate_turns": odo.get("turns"),
+            "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1)}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[11, 12])
     ap.add_argument("--duration", default="", help="mission length (default: the whole scenario)")
     ap.add_argument("--oxford", default=str(ROOT.parent / "shared" / "data" / "oxford-radar-robotcar-sample"))
     ap.add_argument("--radiate", default=str(ROOT.parent / "shared" / "data" / "radiate-edinburgh-head"))
+    ap.add_argument("--radiate-mission", default=str(ROOT.parent / "out" / "lead" / "radiate-head.mcap"),
+                    help="an imported RADIATE mission for bench_radiate (skipped when absent)")
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -116,8 +145,7 @@ def main() -> int:
                   f"rotation {row['final_rot_err_rad']:.3f} rad (seed 0.59 / 0.35 / 0.036)")
             print(f"  ATE {row['ate_rmse_m']:.2f} m, relative error {row['rel_err_pct']:.2f} % over 100-800 m, "
                   f"odometer + gyro ATE {row['baseline_ate_rmse_m']:.2f} m")
-            print(f"  {row['odo_ms_per_turn']} ms per turn (+ map {row['map_ms_per_turn']} ms), degraded turns "
-                  f"{row['degraded_turns']}, wide searches {row['wide_searches']}")
+            print(f"  {_split(odo)}, degraded turns {row['degraded_turns']}, wide searches {row['wide_searches']}")
         ox = {}
         if (Path(args.oxford) / "radar").is_dir():
             mission = tmp / "oxford.mcap"
@@ -147,7 +175,16 @@ def main() -> int:
                   f"{rad['last_path_m']:.0f} m); path {rad['path_ratio']:.3f} x the GPS's; truth later by "
                   f"{rad['best_shift_s']:.2f} s fits best (ATE {rad['shifted_ate_m']:.2f} m); "
                   f"{odo.get('filter_resets')} filter resets, {odo.get('late_stamps')} late stamps in "
-                  f"{odo.get('turns')} turns; {odo.get('odo_ms_per_turn')} ms per turn")
+                  f"{odo.get('turns')} turns; {_split(odo)}")
+            lead = Path(args.radiate_mission)
+            if lead.is_file():
+                rad |= bench_radiate(lead)
+                print(f"RADIATE head {lead} through graphs/odometry_navtech.yaml (map on): ATE "
+                      f"{rad['odometry_radiate_ate_m']} m; {rad['odometry_radiate_ms_per_turn']} ms per turn = echoes "
+                      f"{rad['odometry_radiate_echoes_ms_per_turn']} + estimate "
+                      f"{rad['odometry_radiate_estimate_ms_per_turn']} + search "
+                      f"{rad['odometry_radiate_search_ms_per_turn']} (+ map "
+                      f"{rad['odometry_radiate_map_ms_per_turn']} ms)")
         else:
             print(f"RADIATE head not found at {args.radiate}: skipped")
 
@@ -162,6 +199,13 @@ def main() -> int:
     out["oxford_pair_trans_err_m"] = round(o["pair_trans_err_mean_m"], 4) if o else None
     out["oxford_pair_rot_err_deg"] = round(o["pair_rot_err_mean_deg"], 4) if o else None
     out["radiate_ate_pct"] = rad.get("ate_pct")
+    out["odometry_semiurban_ms_per_turn"] = out["odo_ms_per_turn"]
+    for k in ("odometry_radiate_ms_per_turn", "odometry_radiate_map_ms_per_turn", "odometry_radiate_ate_m"):
+        out[k] = rad.get(k)
+    import resource
+
+    print(f"peak RSS {resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024:.0f} MB (largest run)")
+    out["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1)
     print(json.dumps(out))
     return 0
 

@@ -77,7 +77,7 @@ class DistortionOdometry(Component):
         self._t0: int | None = None
         self._pose_cov = np.zeros((3, 3))
         self._map = TileMap(self.map_cell_m) if self.map_cell_m > 0 else None
-        self._last_turn: tuple | None = None  # (t_s, azimuths, power dB, config) of the previous turn
+        self._last_turn: tuple | None = None  # (t_s, azimuths, dB above beam medians, config) of the previous turn
         self._last_result: TurnResult | None = None
         self.partial_turns = 0  # turns short of beams, used
         self.dropped_turns = 0  # turns with fewer than min_turn_fraction of their beams, not used
@@ -124,7 +124,7 @@ class DistortionOdometry(Component):
             self._emit(int(t_ns.min()) - int(round(r.clock_offset_s * 1e9)), r)
             if self._map is not None and self._last_turn is not None:
                 self._add_to_map(r)
-        self._last_turn = (self.core.beam_times_s, az, up, config)
+        self._last_turn = (self.core.beam_times_s, az, self.core.up_rel_db, config)
         if r is not None and math.isfinite(r.v_mps):
             self._last_result = r
 
@@ -142,16 +142,15 @@ class DistortionOdometry(Component):
 
     def _add_to_map(self, r: TurnResult) -> None:
         """The previous turn's beams placed along the arc between its pose and this one."""
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         prev = self._last_result
-        t_s, az, up, config = self._last_turn
+        t_s, az, rel_db, config = self._last_turn
         if prev is None:
             return
         vm, wm = 0.5 * (prev.v_mps + r.v_mps), 0.5 * (prev.w_radps + r.w_radps)
         poses = self.core.beam_poses(t_s, prev.t_s, prev.pose, vm, wm)
-        db = 10.0 * np.log10(np.maximum(np.asarray(up, np.float32), np.float32(1e-30)))
-        db = np.maximum(db - np.median(db, axis=1, keepdims=True), 0.0)
-        k = np.arange(up.shape[1])
+        db = np.maximum(rel_db, 0.0)  # the odometry's echo extraction computed it (dB above the beam medians)
+        k = np.arange(rel_db.shape[1])
         rng = np.asarray(config.range_of_bin_m(k), float)
         sel = (rng >= self.range_min_m) & (rng <= self.map_range_m)
         rng, db = rng[sel], db[:, sel]
@@ -168,7 +167,7 @@ class DistortionOdometry(Component):
         n = np.bincount(flat, minlength=nx * ny).reshape(ny, nx).astype(np.float32)
         tm.add(ix0, iy0, s, n)
         tm.images += 1
-        self.map_s += time.perf_counter() - t0
+        self.map_s += time.thread_time() - t0
 
     def summary(self) -> dict:
         core = getattr(self, "core", None)
@@ -189,4 +188,5 @@ class DistortionOdometry(Component):
             "dropped_turns": self.dropped_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
+            **{f"{k}_ms_per_turn": round(1e3 * v / core.turns, 2) for k, v in core.split_s.items()},
         }

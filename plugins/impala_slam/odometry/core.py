@@ -106,13 +106,15 @@ class DistortionCore:
         self.last_vw: tuple[float, float] | None = None
         self.recent_scores: list[int] = []
         self.turns = self.degraded = self.searches = self.wide_searches = self.resets = 0
-        self.seconds = 0.0
+        self.seconds = 0.0  # CPU time of step (this thread's)
+        self.split_s = {"echoes": 0.0, "estimate": 0.0, "search": 0.0}  # CPU time of its stages
         # turn clock: a turn's time stamp may come late (a logger that stalls, then catches up)
         self.clock_offset_s = 0.0  # stamp minus turn-clock time of the newest turn
         self.prev_clock_s: float | None = None  # turn-clock time of the previous turn's first beam
         self.intervals: list[float] = []  # recent stamp intervals of one turn (rotation period)
         self.late_stamps = self.missing_turns = 0
         self.beam_times_s = np.zeros(0)  # the newest turn's beams on the turn clock
+        self.up_rel_db = np.zeros((0, 0), np.float32)  # its up image in dB above the beam medians
         self.yaw_acc = 0.0  # rad/s^2, from the last two turns' yaw rates
         self.w_hist: list[tuple[float, float]] = []  # (turn-clock time, filtered yaw rate) of the last turns
 
@@ -140,11 +142,11 @@ class DistortionCore:
     def step(self, t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, down: np.ndarray | None,
              config) -> TurnResult | None:
         """One complete turn (beam times in s from a fixed origin). None for the first turn."""
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         try:
             return self._step(t_s, azimuth_rad, up, down, config)
         finally:
-            self.seconds += time.perf_counter() - t0
+            self.seconds += time.thread_time() - t0
 
     def _period(self, config) -> float:
         """Rotation period: the median of the recent one-turn stamp intervals (the configured
@@ -198,7 +200,11 @@ class DistortionCore:
             # a turn lasts a rotation: beams squeezed between two stamps (a log catching up with
             # itself, its beams spread up to the next stamp on import) are spread over one
             t_s = t0 + (t_s - t0) * (full / span)
-        echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes)
+        tc = time.thread_time()
+        rel: list[np.ndarray] = []
+        echoes = extract_echoes(t_s, azimuth_rad, up, down, config, c.echoes, up_rel_db=rel)
+        self.up_rel_db = rel[0]
+        self.split_s["echoes"] += time.thread_time() - tc
         beta = doppler_beta_s(config) if c.doppler else 0.0
         prev = self.prev
         self.clock_offset_s = self._clock(prev, echoes, float(np.min(t_s)), beta, config)
@@ -227,7 +233,9 @@ class DistortionCore:
         est, searched = None, False
         if around is not None and self.recent_scores:
             # the prediction first: kept when its result coincides as well as the last turns did
+            tc = time.thread_time()
             est = estimate_velocity(prev, echoes, around[0], around[1], t_ref, accel_mps2=acc, **kw)
+            self.split_s["estimate"] += time.thread_time() - tc
             if est is not None:
                 score = self._score(prev, echoes, t_ref, beta, est.v_mps, est.w_radps, acc, yacc)
                 if score >= c.accept_ratio * float(np.median(self.recent_scores)):
@@ -236,6 +244,7 @@ class DistortionCore:
                     est = None
         if est is None:
             searched = True
+            tc = time.thread_time()
             start = self._search(prev, echoes, t_ref, beta, around, acc, yacc)
             if around is not None and (start is None or (self.recent_scores and start[2] < c.lost_ratio * float(
                     np.median(self.recent_scores)))):
@@ -244,9 +253,12 @@ class DistortionCore:
                 if wide is not None and (start is None or wide[2] > start[2]):
                     start = wide
                     self.wide_searches += 1
+            self.split_s["search"] += time.thread_time() - tc
             if start is not None:
                 self.recent_scores = (self.recent_scores + [start[2]])[-8:]
+                tc = time.thread_time()
                 est = estimate_velocity(prev, echoes, start[0], start[1], t_ref, accel_mps2=acc, **kw)
+                self.split_s["estimate"] += time.thread_time() - tc
         self.searches += searched
         degraded = est is None
         if est is not None:

@@ -27,12 +27,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
-from scipy.ndimage import maximum_filter
-from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from impala_msgs import RadarConfig
+
+from .fit import trf_cauchy
 
 __all__ = ["Echoes", "EchoParams", "VelocityEstimate", "arc_poses", "doppler_beta_s", "echo_points",
            "extract_echoes", "estimate_velocity", "search_velocity", "strongest"]
@@ -77,15 +78,25 @@ class Echoes:
                         ("t_s", "azimuth_rad", "range_m", "ramp", "snr_db")))
 
 
-def _peaks(db: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int) -> tuple[np.ndarray, ...]:
-    """Local maxima of a (beams sorted by azimuth, bins) dB image above the beam medians, with
+def _maximum_filter(img: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
+    """scipy.ndimage.maximum_filter(img, (n_rows, n_cols), mode=("wrap", "nearest")) of a float32
+    image with cv2.dilate (a fifth of the time): rows wrap around the turn (padded here), columns
+    repeat their edge; the same window offsets as scipy's, -(k // 2) .. k - 1 - k // 2."""
+    top, bottom = n_rows // 2, n_rows - 1 - n_rows // 2
+    pad = np.concatenate([img[len(img) - top:], img, img[:bottom]]) if n_rows > 1 else img
+    out = cv2.dilate(pad, np.ones((n_rows, n_cols), np.uint8), anchor=(n_cols // 2, n_rows // 2),
+                     borderType=cv2.BORDER_REPLICATE)
+    return out[top:top + len(img)]
+
+
+def _peaks(rel: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int) -> tuple[np.ndarray, ...]:
+    """Local maxima of a (beams sorted by azimuth, bins) image in dB above the beam medians, with
     sub-bin and sub-beam positions (parabola through the peak and its neighbours)."""
-    rel = db - np.median(db, axis=1, keepdims=True)
     k0 = int(max(1, math.ceil(config.bin_of_range(p.range_min_m))))
-    k1 = int(min(db.shape[1] - 1, math.floor(config.bin_of_range(p.range_max_m))))
+    k1 = int(min(rel.shape[1] - 1, math.floor(config.bin_of_range(p.range_max_m))))
     if k1 <= k0:
         return (np.zeros(0, int),) * 2 + (np.zeros(0),) * 3
-    mx = maximum_filter(rel, size=(n_win_beams, p.window_bins), mode=("wrap", "nearest"))
+    mx = _maximum_filter(rel, n_win_beams, p.window_bins)
     ok = (rel == mx) & (rel > p.threshold_db)
     ok[:, :k0] = False
     ok[:, k1:] = False
@@ -95,7 +106,7 @@ def _peaks(db: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int)
         keep = np.argpartition(-val, p.max_echoes - 1)[: p.max_echoes]
         keep.sort()
         bi, ki, val = bi[keep], ki[keep], val[keep]
-    n = db.shape[0]
+    n = rel.shape[0]
     # parabolic refinement in range and in azimuth (wrapping around the turn)
     left, right = rel[bi, ki - 1], rel[bi, ki + 1]
     den = left - 2.0 * val + right
@@ -107,13 +118,14 @@ def _peaks(db: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int)
 
 
 def extract_echoes(t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, down: np.ndarray | None,
-                   config: RadarConfig, params: EchoParams = EchoParams()) -> Echoes:
+                   config: RadarConfig, params: EchoParams = EchoParams(), up_rel_db: list | None = None) -> Echoes:
     """Strong, stable echoes of one turn: 2-D local maxima (scipy.ndimage.maximum_filter) of
     each ramp's polar image in dB, ``threshold_db`` above their beam's median, the
     ``max_echoes`` strongest, refined to sub-bin range and sub-beam azimuth.
 
     ``t_s``/``azimuth_rad`` per beam, in any order and either rotation sense; ``up``/``down``
-    (beams, bins) linear power (``down`` None or empty for a power-only radar)."""
+    (beams, bins) linear power (``down`` None or empty for a power-only radar). ``up_rel_db``, a
+    list, receives the ``up`` image in dB above its beam medians (beams in their given order)."""
     order = np.argsort(np.mod(azimuth_rad, 2.0 * np.pi), kind="stable")
     t_s, az = np.asarray(t_s, float)[order], np.unwrap(np.asarray(azimuth_rad, float)[order])
     n = len(order)
@@ -124,7 +136,10 @@ def extract_echoes(t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, dow
     for img, sign in ramps:
         img = np.asarray(img, np.float32)[order]
         db = 10.0 * np.log10(np.maximum(img, np.float32(1e-30)))
-        bi, ki, dk, dbeam, val = _peaks(db, params, config, min(n_win, n))
+        rel = db - np.median(db, axis=1, keepdims=True)
+        if sign > 0 and up_rel_db is not None:  # beams back in their given order
+            up_rel_db.append(rel[np.argsort(order, kind="stable")])
+        bi, ki, dk, dbeam, val = _peaks(rel, params, config, min(n_win, n))
         if not len(bi):
             continue
         # neighbours' time and azimuth (linear between the peak beam and the next or previous one)
@@ -185,20 +200,56 @@ class VelocityEstimate:
     yaw_accel_radps2: float = 0.0  # the motion model's yaw acceleration (estimated or given)
 
 
-def _residuals(params, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float,
-               yacc: float):
-    v, w = params
-    pa = echo_points(ea, v, w, t_ref, beta, acc, yacc)
-    pb = echo_points(eb, v, w, t_ref, beta, acc, yacc)
-    d = pa - pb
-    # radial / tangential axes of each pair's second echo, with its own uncertainty
-    dt = eb.t_s - t_ref
-    th = (w + 0.5 * yacc * dt) * dt
-    a = th + eb.azimuth_rad
-    c, s = np.cos(a), np.sin(a)
-    er = (d[:, 0] * c + d[:, 1] * s) / sr
-    et = (-d[:, 0] * s + d[:, 1] * c) / np.sqrt(sr * sr + (eb.range_m * sphi) ** 2)
-    return np.concatenate([er, et])
+class _Placed:
+    """What placing a turn's echoes for any (v, w) needs that does not depend on them, computed
+    once per association (the same operations as :func:`echo_points`, so the same bits)."""
+
+    def __init__(self, e: Echoes, t_ref: float, beta: float, acc: float):
+        self.dt = e.t_s - t_ref
+        self.d_acc = 0.5 * acc * self.dt * self.dt
+        self.dop = e.ramp * beta  # apparent range per m/s of speed, times cos(azimuth)
+        self.cos_az = np.cos(e.azimuth_rad)
+        self.azimuth_rad = e.azimuth_rad
+        self.range_m = e.range_m
+
+    def rows(self, v: np.ndarray, w: np.ndarray, yacc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """X, Y and the heading th + azimuth of every echo for k parameter sets (v, w, yacc: (k, 1)
+        columns or numbers), (k, n) each."""
+        dt = self.dt
+        th = (w + 0.5 * yacc * dt) * dt
+        _, _, sinc, cosc = _arc_factors(th)
+        d = v * dt + self.d_acc
+        r = self.range_m + self.dop * v * self.cos_az
+        a = th + self.azimuth_rad
+        return d * sinc + r * np.cos(a), d * cosc + r * np.sin(a), a
+
+
+class PairResiduals:
+    """Residuals of associated pairs (one echo of turn ``a``, one of turn ``b``) for rows of
+    parameters: the gaps between the pairs' placed echoes along the radial, then the tangential
+    axis of each pair's second echo, scaled by their standard deviations."""
+
+    def __init__(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float):
+        self.a, self.b = _Placed(ea, t_ref, beta, acc), _Placed(eb, t_ref, beta, acc)
+        self.sr = sr
+        self.st = np.sqrt(sr * sr + (eb.range_m * sphi) ** 2)
+
+    def __call__(self, params: np.ndarray, yacc) -> np.ndarray:
+        """(k, 2 n) for the rows (v, w) of ``params`` (k, 2); ``yacc`` a number or a (k, 1) column."""
+        v, w = params[:, 0:1], params[:, 1:2]
+        xa, ya, _ = self.a.rows(v, w, yacc)
+        xb, yb, ang = self.b.rows(v, w, yacc)
+        dx, dy = xa - xb, ya - yb
+        c, s = np.cos(ang), np.sin(ang)
+        er = (dx * c + dy * s) / self.sr
+        et = (-dx * s + dy * c) / self.st
+        return np.concatenate([er, et], axis=1)
+
+
+def _residuals_rows(params: np.ndarray, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float,
+                    acc: float, yacc) -> np.ndarray:
+    """:class:`PairResiduals` of the rows of ``params`` in one call."""
+    return PairResiduals(ea, eb, t_ref, beta, sr, sphi, acc)(params, yacc)
 
 
 def _subset(e: Echoes, idx: np.ndarray) -> Echoes:
@@ -236,10 +287,11 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
 
     Associate (mutual nearest neighbours within a gate that shrinks from ``gate_m``), then
     minimise the radial/tangential residuals scaled by their uncertainties with a robust
-    Cauchy loss (scipy.optimize.least_squares), a few times. The covariance is the Gauss-
-    Newton one at the solution, scaled by the inliers' residual variance (at least 1).
-    None when fewer than ``min_pairs`` pairs associate. With ``yaw_accel_std_radps2`` the yaw
-    acceleration is estimated too, ``yaw_accel_radps2`` being its prior (mean, this std)."""
+    Cauchy loss (scipy.optimize.least_squares's trf, written out in :func:`~.fit.trf_cauchy`),
+    a few times. The covariance is the Gauss-Newton one at the solution, scaled by the inliers'
+    residual variance (at least 1). None when fewer than ``min_pairs`` pairs associate. With
+    ``yaw_accel_std_radps2`` the yaw acceleration is estimated too, ``yaw_accel_radps2`` being
+    its prior (mean, this std)."""
     v, w = float(v0), float(w0)
     alpha = float(yaw_accel_radps2)
     joint = yaw_accel_std_radps2 > 0
@@ -252,16 +304,19 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
             return None
         a, b = _subset(ea, ia), _subset(eb, ib)
         if joint and it == iterations - 1:  # the last, narrowest association only
-            def fun(p, a=a, b=b):
-                return np.concatenate([_residuals(p[:2], a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad,
-                                                  accel_mps2, p[2]),
-                                       [(p[2] - yaw_accel_radps2) / yaw_accel_std_radps2]])
-            res = least_squares(fun, [v, w, alpha], loss="cauchy", f_scale=2.0, method="trf",
-                                x_scale=[1.0, 0.05, 0.1])
+            pr = PairResiduals(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2)
+
+            def fun(p, pr=pr):
+                return np.concatenate([pr(p, p[:, 2:3]), (p[:, 2:3] - yaw_accel_radps2) / yaw_accel_std_radps2],
+                                      axis=1)
+            res = trf_cauchy(fun, [v, w, alpha], 2.0, [1.0, 0.05, 0.1])
             v, w, alpha = (float(x) for x in res.x)
         else:
-            res = least_squares(_residuals, [v, w], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05],
-                                args=(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2, alpha))
+            pr = PairResiduals(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2)
+
+            def fun(p, pr=pr, alpha=alpha):
+                return pr(p, alpha)
+            res = trf_cauchy(fun, [v, w], 2.0, [1.0, 0.05])
             v, w = (float(x) for x in res.x)
     r = res.fun[:-1] if joint else res.fun  # the prior's residual apart
     n = len(r) // 2
@@ -356,7 +411,8 @@ def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: fl
 def _scores(a: Echoes, b: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: float,
             gate_m: float, acc: float, yacc: float = 0.0) -> np.ndarray:
     """Coincidences per candidate, (len(vs), len(ws))."""
-    kb = np.sort(_cells(b, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc), axis=None)
+    # the candidate's index is the key's high part: sorting each candidate's keys sorts them all
+    kb = np.sort(_cells(b, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc), axis=2).ravel()
     ka = _cells(a, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc)
     pos = np.minimum(np.searchsorted(kb, ka), len(kb) - 1)
     return np.count_nonzero(kb[pos] == ka, axis=2).T
