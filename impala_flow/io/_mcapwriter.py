@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections import defaultdict, deque
-from concurrent.futures import Future, ThreadPoolExecutor
+from collections import defaultdict
 from typing import Any
 
 import lz4.frame
@@ -63,12 +62,8 @@ class McapWriter:
         self.counts: dict[int, int] = defaultdict(int)
         self.message_count = 0
         self._t_min = self._t_max = 0
-        # chunks compressing on the worker thread, in file order: (future, chunk)
-        self._pending: deque[tuple[Future, tuple[bytearray, int, int, dict[int, list[int]]]]] = deque()
-        self._pool: ThreadPoolExecutor | None = None
 
     def _record(self, record: Any) -> tuple[int, int]:
-        self.flush_chunk()  # the chunks made before this record first
         rb = RecordBuilder()
         record.write(rb)
         data = rb.end()
@@ -127,41 +122,23 @@ class McapWriter:
             self._t_max = t_ns
         self.message_count += 1
         if len(buf) >= self._chunk_size:
-            self.flush_chunk(wait=False)
+            self.flush_chunk()
 
-    def flush_chunk(self, wait: bool = True) -> None:
-        """Close the chunk in progress (if any) and write it with its message indexes.
-
-        Its CRC and compression run on a worker thread (zlib, zstd and lz4 release the GIL):
-        with ``wait=False`` (a chunk that filled up) the call returns at once and the chunk is
-        written when the next one fills, at the next record or at the latest by
-        :meth:`finish`; ``wait=True`` writes every chunk pending. The file's bytes are the
-        same either way: chunks and records are written in the order they were made."""
-        if self._n_chunk:
-            job = (self._buf, self._start, self._end, self._index)
-            self._buf = bytearray()
-            self._index = {}
-            self._n_chunk = 0
-            if self._pool is None:
-                self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-compress")
-            self._pending.append((self._pool.submit(self._compress, job[0]), job))
-        while self._pending and (wait or len(self._pending) > 1):
-            future, (records, start, end, index) = self._pending.popleft()
-            self._write_chunk(records, start, end, index, *future.result())
-
-    def _compress(self, records: bytearray) -> tuple[int, bytes | bytearray]:
+    def flush_chunk(self) -> None:
+        """Write the chunk in progress (if any) and its message indexes."""
+        if not self._n_chunk:
+            return
+        records = self._buf
         crc = zlib.crc32(records)
         if self._zstd is not None:
-            return crc, self._zstd.compress(records)
-        if self._compression == "lz4":
-            return crc, lz4.frame.compress(records)
-        return crc, records
-
-    def _write_chunk(self, records: bytearray, start: int, end: int, index: dict[int, list[int]], crc: int,
-                     data: bytes | bytearray) -> None:
+            data: bytes | bytearray = self._zstd.compress(records)
+        elif self._compression == "lz4":
+            data = lz4.frame.compress(records)
+        else:
+            data = records
         comp = self._compression.encode()
         length = 8 + 8 + 8 + 4 + 4 + len(comp) + 8 + len(data)
-        head = (_CHUNK.pack(Opcode.CHUNK, length, start, end, len(records), crc)
+        head = (_CHUNK.pack(Opcode.CHUNK, length, self._start, self._end, len(records), crc)
                 + _U32.pack(len(comp)) + comp + _U64.pack(len(data)))
         out = self._out
         chunk_at = out.tell()
@@ -171,7 +148,7 @@ class McapWriter:
         offsets: dict[int, int] = {}
         pieces = []
         pos = index_at
-        for cid, pairs in index.items():
+        for cid, pairs in self._index.items():
             body = struct.pack(f"<HI{len(pairs)}Q", cid, 8 * len(pairs), *pairs)
             rec = struct.pack("<BQ", Opcode.MESSAGE_INDEX, len(body)) + body
             offsets[cid] = pos
@@ -179,23 +156,18 @@ class McapWriter:
             pieces.append(rec)
         out.write(b"".join(pieces))
         self._chunk_indexes.append(ChunkIndex(
-            message_start_time=start, message_end_time=end,
+            message_start_time=self._start, message_end_time=self._end,
             chunk_start_offset=chunk_at, chunk_length=len(head) + len(data),
             message_index_offsets=offsets, message_index_length=pos - index_at,
             compression=self._compression, compressed_size=len(data),
             uncompressed_size=len(records)))
-
-    def close(self) -> None:
-        """Stop the compression thread (pending chunks are dropped: :meth:`finish` writes them)."""
-        pool, self._pool = self._pool, None
-        self._pending.clear()
-        if pool is not None:
-            pool.shutdown(wait=True)
+        self._buf = bytearray()
+        self._index = {}
+        self._n_chunk = 0
 
     def finish(self) -> None:
         """Last chunk, data end, summary (with offsets and CRC), footer, magic."""
         self.flush_chunk()
-        self.close()
         self._record(DataEnd(0))
         summary_at = self._out.tell()
         rb = RecordBuilder()

@@ -1,11 +1,9 @@
 """MissionWriter: record timestamped streams to a chunked, indexed MCAP file.
 
 One channel per stream (topic ``component/port``), ``log_time`` = ``publish_time`` = the
-sample timestamp (int ns). A full chunk is compressed on a worker thread and goes to the
-operating system (the file is opened unbuffered) at the latest when the next one is full;
-every chunk is written at least every ``flush_period_s`` of wall time, so a process killed
-with SIGKILL leaves a file readable up to its last complete chunk. The bytes written do not
-depend on the thread: records go to the file in the order they were made.
+sample timestamp (int ns). Chunks go to the operating system as soon as they are full
+(the file is opened unbuffered), and at least every ``flush_period_s`` of wall time, so a
+process killed with SIGKILL leaves a file readable up to its last complete chunk.
 """
 
 from __future__ import annotations
@@ -206,7 +204,6 @@ class MissionWriter:
         try:
             self._mcap.finish()
         finally:
-            self._mcap.close()
             self._file.close()
 
     def __enter__(self) -> MissionWriter:
