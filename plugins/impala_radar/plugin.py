@@ -12,7 +12,7 @@ from typing import Any
 from impala_flow.plugins import hookimpl, require
 
 #: the libraries of this plugin's extra (pip install 'impala-flow[radar]'), checked before any hook runs
-REQUIRES = ("scipy", "cv2", "PIL", "matplotlib")
+REQUIRES = ("scipy", "cv2", "PIL", "matplotlib", "numba")
 
 
 @hookimpl

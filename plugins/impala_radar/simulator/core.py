@@ -44,7 +44,16 @@ from impala_msgs import SPEED_OF_LIGHT_MPS, ObjectStates, RadarBeam, RadarConfig
 
 from .clutter import grazing_factor, hash_uniform, split_tiles, vegetation_jitter
 from .receiver import adc_counts, leakage_echoes, mirror_images
-from .spectra import Echoes, RadarParams, Synthesizer, azimuth_pattern, echoes, received_power_w
+from .spectra import (
+    Echoes,
+    RadarParams,
+    Synthesizer,
+    azimuth_pattern,
+    echoes,
+    pair_echoes,
+    received_power_w,
+    select_pairs,
+)
 from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
 
 DEFAULT_PARAMS = RadarParams()
@@ -268,11 +277,20 @@ class RadarSimulator:
                     jc = j[cand]
                     tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
                     vis = tr if vis is None else tr * vis
-            parts.append(echoes(np.arange(sl.start, sl.stop), radar_xy[sl], radar_vxy[sl],
-                                beam_dir[sl], np.column_stack([sx[j], sy[j]]), sz[j], None,
-                                rcs[j], phase[j], self.config, self.params, visible=vis,
-                                range_limit_m=r_lim, cut_rad=window[j], area_m2=area[j]))
-        return Echoes.concat(parts)
+            bi, si, *d = select_pairs(radar_xy[sl], beam_dir[sl], np.column_stack([sx[j], sy[j]]),
+                                      np.tan(np.minimum(window[j], 1.5)), r_lim**2, vis)
+            shadow = vis[si] if vis is not None and vis.dtype != bool else None
+            parts.append((sl.start + bi, j[si], d, shadow))
+        if not parts:
+            return Echoes.concat([])
+        # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
+        beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        d = [np.concatenate([p[2][k] for p in parts]) for k in range(5)]
+        shadow = None
+        if any(p[3] is not None for p in parts):  # x 1.0 where a block had none: exact
+            shadow = np.concatenate([np.ones(len(p[0])) if p[3] is None else p[3] for p in parts])
+        return pair_echoes(beam, radar_vxy[beam], *d, sz[jj], None, rcs[jj], phase[jj], area[jj], shadow,
+                           self.config, self.params)
 
     def _swept_mover_discs(self, t_ns, n_samples: int = 9):
         """The movers' discs at ``n_samples`` times of the turn, widened by the motion between."""
