@@ -106,21 +106,6 @@ def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_PO
     return out
 
 
-def _bearing_window(idx, sorted_bearing, mid, half):
-    """Entries of ``idx`` whose bearing (sorted, in [-pi, pi)) is within ``half`` of ``mid``."""
-    if half >= np.pi:
-        return idx
-    lo, hi = mid - half, mid + half
-    parts = [(max(lo, -np.pi), min(hi, np.pi))]
-    if lo < -np.pi:
-        parts.append((lo + 2 * np.pi, np.pi))
-    if hi > np.pi:
-        parts.append((-np.pi, hi - 2 * np.pi))
-    return np.concatenate([idx[np.searchsorted(sorted_bearing, a):
-                               np.searchsorted(sorted_bearing, b, side="right")]
-                           for a, b in parts])
-
-
 class RadarSimulator:
     """Computes the up/down spectra of whole turns of a rotating radar in a :class:`World`."""
 
@@ -255,14 +240,16 @@ class RadarSimulator:
         far = far[np.argsort(bearing[far], kind="stable")]
         far_bearing = bearing[far]
         far_slack = (float(window[far].max()) if far.size else 0.0) + math.asin(min(1.0, spread / r_near))
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        tan_cut = np.tan(np.minimum(window, 1.5))
         parts = []
         n = len(beam_dir)
+        mids, halves = kernels.block_spans(beam_dir, self.block_beams)  # np.unwrap of each block's directions
         for b0 in range(0, n, self.block_beams):
             sl = slice(b0, min(n, b0 + self.block_beams))
-            d = np.unwrap(beam_dir[sl])
-            mid, half = _wrap(0.5 * (d[0] + d[-1])), 0.5 * abs(d[-1] - d[0])
-            j = np.concatenate([_bearing_window(far, far_bearing, mid, half + far_slack), near])
-            j = j[np.abs(_wrap(bearing[j] - mid)) <= half + slack[j]]
+            mid, half = float(mids[b0 // self.block_beams]), float(halves[b0 // self.block_beams])
+            j = kernels.block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack)
             if j.size == 0:
                 continue
             vis = None
@@ -278,7 +265,7 @@ class RadarSimulator:
                     tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
                     vis = tr if vis is None else tr * vis
             bi, si, *d = select_pairs(radar_xy[sl], beam_dir[sl], np.column_stack([sx[j], sy[j]]),
-                                      np.tan(np.minimum(window[j], 1.5)), r_lim**2, vis)
+                                      tan_cut[j], r_lim**2, vis)
             shadow = vis[si] if vis is not None and vis.dtype != bool else None
             parts.append((sl.start + bi, j[si], d, shadow))
         if not parts:

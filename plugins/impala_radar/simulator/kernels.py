@@ -18,7 +18,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "static_pairs"]
+__all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "static_pairs", "segments_clear",
+           "discs_transmission", "block_spans", "block_candidates"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -157,3 +158,73 @@ def discs_transmission(px, py, qx, qy, qz, radar_z_m, discs, eps_m):
                 p *= discs[k, 5]
         out[i] = p
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _wrap(a: float) -> float:
+    """:func:`impala_flow.msgs.wrap_angle` of a float: (a + pi) % 2 pi - pi."""
+    return _mod(a + math.pi, 2.0 * math.pi) - math.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def block_spans(beam_dir, block):
+    """Per block of ``block`` beams: the middle direction and the half-span of its beams'
+    directions once unwrapped (``np.unwrap`` of the block, then its ends)."""
+    n = beam_dir.shape[0]
+    nb = (n + block - 1) // block
+    mid, half = np.empty(nb), np.empty(nb)
+    for b in range(nb):
+        lo, hi = b * block, min(n, (b + 1) * block)
+        c = 0.0  # np.unwrap: cumulative correction of the jumps beyond pi
+        for k in range(lo + 1, hi):
+            dd = beam_dir[k] - beam_dir[k - 1]
+            ddmod = _mod(dd + math.pi, 2.0 * math.pi) - math.pi
+            if ddmod == -math.pi and dd > 0.0:
+                ddmod = math.pi
+            pc = ddmod - dd
+            if abs(dd) < math.pi:
+                pc = 0.0
+            c = pc if k == lo + 1 else c + pc
+        first, last = beam_dir[lo], beam_dir[hi - 1] + c if hi - 1 > lo else beam_dir[lo]
+        mid[b], half[b] = _wrap(0.5 * (first + last)), 0.5 * abs(last - first)
+    return mid, half
+
+
+@numba.njit(cache=True, nogil=True)
+def block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack):
+    """Scatterers whose bearing from the turn centre may fall in a block's beams: the far ones
+    (sorted by bearing) within ``half + far_slack`` of ``mid`` by binary search, then the near
+    ones, each kept if |wrap(bearing - mid)| <= half + its slack."""
+    out = np.empty(far.shape[0] + near.shape[0], np.intp)
+    n = 0
+    w = half + far_slack
+    lo, hi = mid - w, mid + w
+    ranges = np.empty((3, 2))
+    nr = 1
+    if w >= math.pi:
+        ranges[0, 0], ranges[0, 1] = -np.inf, np.inf
+    else:
+        ranges[0, 0], ranges[0, 1] = max(lo, -math.pi), min(hi, math.pi)
+        if lo < -math.pi:
+            ranges[nr, 0], ranges[nr, 1] = lo + 2.0 * math.pi, math.pi
+            nr += 1
+        if hi > math.pi:
+            ranges[nr, 0], ranges[nr, 1] = -math.pi, hi - 2.0 * math.pi
+            nr += 1
+    for r in range(nr):
+        if w >= math.pi:
+            i0, i1 = 0, far.shape[0]
+        else:
+            i0 = np.searchsorted(far_bearing, ranges[r, 0], side="left")
+            i1 = np.searchsorted(far_bearing, ranges[r, 1], side="right")
+        for i in range(i0, i1):
+            j = far[i]
+            if abs(_wrap(bearing[j] - mid)) <= half + slack[j]:
+                out[n] = j
+                n += 1
+    for i in range(near.shape[0]):
+        j = near[i]
+        if abs(_wrap(bearing[j] - mid)) <= half + slack[j]:
+            out[n] = j
+            n += 1
+    return out[:n]
