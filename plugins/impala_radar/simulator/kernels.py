@@ -25,7 +25,7 @@ __all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "stat
 @numba.njit(cache=True, nogil=True)
 def _mod(a: float, b: float) -> float:
     """numpy's float remainder (npy_divmod): fmod, moved into [0, b) for b > 0."""
-    r = np.fmod(a, b)  # exact (numba has no math.fmod)
+    r = a if -b < a < b else np.fmod(a, b)  # fmod is exact (numba has no math.fmod): a itself when |a| < b
     if r != 0.0:
         if (b < 0.0) != (r < 0.0):
             r += b
