@@ -14,7 +14,8 @@ the Navtech's, and a turn that starts anywhere). Each beam is computed at the ve
 and velocity of its own time, so a moving radar sees the scene distorted (a straight wall becomes a trochoid) and every
 static echo carries the vehicle's Doppler V = -v . u (u the line of sight).
 
-Work per turn (vectorised; :mod:`impala_radar.simulator.spectra` for the equations): the static
+Work per turn (:mod:`impala_radar.simulator.spectra` for the equations; ``bench/simulator.py``
+prints its split by stage): the static
 scatterers within reach of the turn's poses are fetched once (k-d tree), clutter tiles near
 the radar split for developed speckle, vegetation jittered, facade mirror images added
 (:mod:`.clutter`, :mod:`.receiver`); each scatterer gets the azimuth window where its echo
@@ -23,8 +24,12 @@ parked cars, movers swept over the turn) marks what may be shadowed; the turn is
 into blocks of 8 beams; per block the scatterers whose bearing can fall inside the beams'
 pattern are selected (bearing from the turn centre, widened by the pose spread), their
 occlusion (walls; discs on the marked ones) is tested at the block's middle pose (8 beams =
-22 ms of motion), and their
-echoes are evaluated densely over (block beams x scatterers). Movers are evaluated over
+22 ms of motion), and the (beam, scatterer) pairs inside the beams' pattern are kept; the
+echoes of all blocks' pairs are then evaluated in one vectorised pass. The loops over
+scatterers (block selection, pairs, ray tests, NUFFT spreading) are compiled with numba
+(:mod:`.kernels`, cached on disk, compiled at their first call), with the arithmetic of the
+numpy formulation they replaced, so seeded missions are the same bit for bit; the
+transcendental functions stay numpy's. Movers are evaluated over
 the whole turn at every beam time, occlusion included (walls and static discs). With the
 transmitter leakage echoes, all echoes of the turn then go through one
 :class:`~impala_radar.simulator.spectra.Synthesizer` call.

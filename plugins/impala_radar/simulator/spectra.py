@@ -47,12 +47,12 @@ by gridding (Dutt-Rokhlin, Greengard-Lee; FINUFFT's "exponential of semicircle" 
 Kernel and phasors are evaluated in float32 (SIMD; relative error 1e-7). The error of the
 resulting power spectrum is below -100 dB relative to the strongest echo (checked against
 direct summation in tests/radar/test_sim_spectra.py), far under the Hann sidelobes and the
-thermal noise. Cost per ramp: 6 kernel values per echo (np.bincount over
-a whole turn) plus two FFTs per beam, versus 29 bins per echo for a Hann DTFT summed
-directly in the frequency domain and truncated at -60 dB, and N exponentials per echo for
-time-domain synthesis. The window is applied in the time domain, so any window and the
-exact fold of negative beat frequencies (near, fast targets) of the real mixer output come
-for free; echoes with |f| >= fs/2 are removed (ideal anti-aliasing filter).
+thermal noise. Cost per ramp: 6 kernel values per echo (one compiled spreading loop over a
+whole turn, :mod:`.kernels`, the exponential being numpy's) plus two FFTs per beam, versus
+29 bins per echo for a Hann DTFT summed directly in the frequency domain and truncated at
+-60 dB, and N exponentials per echo for time-domain synthesis. The window is applied in the
+time domain, so any window and the exact fold of negative beat frequencies (near, fast
+targets) of the real mixer output come for free; echoes with |f| >= fs/2 are removed (ideal anti-aliasing filter).
 
 Echoes weaker than the noise per bin by ``cull_below_noise_db`` (30 dB) are dropped when
 thermal noise is on: the window spreads each over ~4 bins and a beam holds far fewer of
@@ -356,7 +356,7 @@ class Synthesizer:
     def signal(self, beam, f_hz, amplitude, phase_rad, n_beams: int) -> np.ndarray:
         """Complex time samples z (n_beams, N) of sum_i a_i exp(j(2 pi f_i t + phi_i))."""
         # Hand-written type-1 NUFFT (finufft does this; not a dependency, and batching all
-        # beams of a turn into one bincount is what makes it fast here).
+        # beams of a turn into one spreading pass is what makes it fast here).
         ok = np.abs(f_hz) < 0.5 * self.fs_hz
         if not ok.all():
             f_hz, amplitude, phase_rad, beam = f_hz[ok], amplitude[ok], phase_rad[ok], beam[ok]
