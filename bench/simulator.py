@@ -28,6 +28,7 @@ import functools
 import json
 import os
 import resource
+import threading
 import time
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -42,26 +43,30 @@ def _rss_mb() -> float:
 
 
 class _Stages:
-    """Exclusive CPU time (``time.thread_time``) of wrapped functions, grouped by stage."""
+    """Exclusive CPU time (``time.thread_time``) of wrapped functions, grouped by stage,
+    summed over the threads that run them."""
 
     def __init__(self) -> None:
         self.s = dict.fromkeys(STAGES, 0.0)
-        self._stack: list[float] = []
+        self._local = threading.local()
+        self._lock = threading.Lock()
         self._undo: list[tuple[object, str, object]] = []
 
     def wrap(self, owner, name: str, stage: str) -> None:
         fn = owner.__dict__[name]
-        stack, acc = self._stack, self.s
+        local, acc, lock = self._local, self.s, self._lock
 
         @functools.wraps(fn)
         def timed(*args, **kwargs):
+            stack = local.__dict__.setdefault("stack", [])
             t0 = time.thread_time()
             stack.append(0.0)
             try:
                 return fn(*args, **kwargs)
             finally:
                 dt = time.thread_time() - t0
-                acc[stage] += dt - stack.pop()
+                with lock:
+                    acc[stage] += dt - stack.pop()
                 if stack:
                     stack[-1] += dt
 
@@ -74,7 +79,7 @@ class _Stages:
 
 
 def _instrument() -> _Stages:
-    from impala_radar.simulator import core, spectra
+    from impala_radar.simulator import core, kernels, spectra
     from impala_radar.simulator.world import World
 
     st = _Stages()
@@ -83,27 +88,32 @@ def _instrument() -> _Stages:
         (core.RadarSimulator, "_windows", "scene"), (core, "_maybe_behind", "scene"),
         (World, "visible", "occlusion"), (core, "disc_transmission", "occlusion"),
         (core.RadarSimulator, "_block_discs", "occlusion"), (core.RadarSimulator, "_swept_mover_discs", "occlusion"),
-        (core, "echoes", "echoes"), (core, "select_pairs", "echoes"), (core, "pair_echoes", "echoes"),
+        (core, "echoes", "echoes"), (kernels, "static_pairs", "echoes"), (core, "pair_echoes", "echoes"),
         (core.RadarSimulator, "_movers", "movers"),
         (core.RadarSimulator, "turn", "blocks"), (core.RadarSimulator, "_static", "blocks"),
         (spectra.Synthesizer, "spectra", "blocks"), (spectra.Synthesizer, "signal", "spread"),
-        (spectra.Synthesizer, "ramp", "noise"), (spectra.Synthesizer, "power_spectrum", "fft"),
+        (spectra.Synthesizer, "ramp", "noise"), (spectra.Synthesizer, "_draws", "noise"),
+        (spectra.Synthesizer, "_spectrum", "noise"),
+        (spectra.Synthesizer, "power_spectrum", "fft"),
         (spectra, "phase_noise_skirts", "phase_noise"), (core, "adc_counts", "adc"),
     ]:
         st.wrap(owner, name, stage)
     return st
 
 
-def bench_beynes(turns: int = 20, scenario: str = "beynes", seed: int | None = None) -> dict:
-    """Simulate ``turns`` turns of ``scenario``; the figures as a dict (JSON keys with units)."""
+def bench_beynes(turns: int = 20, scenario: str = "beynes", seed: int | None = None, threads: int = 1) -> dict:
+    """Simulate ``turns`` turns of ``scenario`` with ``threads`` threads; the figures as a dict
+    (JSON keys with units). CPU time is the process's (all threads); wall time is what a
+    user waits, meaningful on a quiet machine only."""
     from impala_radar.simulator.core import RadarSimulator, beam_times_ns
     from impala_radar.simulator.scenario import load_scenario
 
     t0 = time.perf_counter()
     sc = load_scenario(scenario, seed=seed, duration_s=float(turns))
+    sc.threads = threads
     build_s = time.perf_counter() - t0
     c0 = time.process_time()  # warm-up: numba's compiled loops loaded (or compiled, once per machine)
-    RadarSimulator(sc.world, sc.config, sc.params).turn(
+    RadarSimulator(sc.world, sc.config, sc.params, threads=threads).turn(
         sc.trajectory, beam_times_ns(sc.start_t_ns, 0, sc.config)[:8], sc.acquisition_rng())
     warmup_s = time.process_time() - c0
     rss_world_mb = _rss_mb()
@@ -124,6 +134,7 @@ def bench_beynes(turns: int = 20, scenario: str = "beynes", seed: int | None = N
     per_turn_ms = {k: round(1e3 * v / max(turns_done, 1), 2) for k, v in stages.s.items()}
     return {
         "scenario": sc.name,
+        "threads": threads,
         "turns": turns_done,
         "world_scatterers": len(sc.world),
         "world_build_s": round(build_s, 3),
@@ -141,26 +152,40 @@ def bench_beynes(turns: int = 20, scenario: str = "beynes", seed: int | None = N
     }
 
 
+def _report(r: dict) -> None:
+    mission_s = r["turns"] / max(r["sim_turns_per_s"], 1e-9) * r["simulator_beynes_x_realtime"]
+    print(f"{r['threads']} thread(s): {r['turns']} turns ({mission_s:.1f} s of mission) in {r['sim_cpu_s']:.2f} s CPU: "
+          f"{r['sim_turns_per_s']:.2f} turns/s, {r['simulator_beynes_x_realtime']:.2f}x real time (CPU); "
+          f"wall {r['sim_wall_s']:.2f} s, {r['wall_x_realtime']:.2f}x real time (wall)")
+    print(f"  per turn {r['simulator_ms_per_turn']:.1f} ms CPU = "
+          + " + ".join(f"{k} {r[f'{k}_ms_per_turn']:.1f}" for k in STAGES))
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--turns", type=int, default=20, help="antenna turns to simulate")
     ap.add_argument("--scenario", default="beynes")
     ap.add_argument("--seed", type=int, default=None)
+    ap.add_argument("--threads", default="1,2", help="comma-separated thread counts to run (the first is the "
+                    "JSON's headline; 1 = one core)")
     args = ap.parse_args(argv)
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core
-    r = bench_beynes(args.turns, args.scenario, args.seed)
-    mission_s = r["turns"] / max(r["sim_turns_per_s"], 1e-9) * r["simulator_beynes_x_realtime"]
+    cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
+    runs = []
+    for threads in (int(t) for t in args.threads.split(",")):
+        if cores:  # one thread: pinned to one core; n threads: n cores
+            os.sched_setaffinity(0, set(cores[:max(1, threads)]))
+        runs.append(bench_beynes(args.turns, args.scenario, args.seed, threads))
+    r = runs[0]
     print(f"scenario {r['scenario']}: {r['world_scatterers']} scatterers, world built in {r['world_build_s']:.2f} s; "
           f"warm-up (numba loops loaded) {r['warmup_cpu_s']:.2f} s CPU")
-    print(f"{r['turns']} turns ({mission_s:.1f} s of mission) simulated in {r['sim_cpu_s']:.2f} s CPU "
-          f"(one core): {r['sim_turns_per_s']:.2f} turns/s, "
-          f"{r['simulator_beynes_x_realtime']:.2f}x real time; wall {r['sim_wall_s']:.2f} s, "
-          f"{r['wall_x_realtime']:.2f}x")
-    print(f"per turn {r['simulator_ms_per_turn']:.1f} ms CPU = "
-          + " + ".join(f"{k} {r[f'{k}_ms_per_turn']:.1f}" for k in STAGES))
+    for x in runs:
+        _report(x)
     print("messages: " + ", ".join(f"{k} {v}" for k, v in sorted(r["messages"].items())))
-    print(f"peak RSS {r['peak_rss_mb']:.0f} MB (after the world: {r['rss_after_world_mb']:.0f} MB)")
+    print(f"peak RSS {max(x['peak_rss_mb'] for x in runs):.0f} MB (after the world: {r['rss_after_world_mb']:.0f} MB)")
+    for x in runs[1:]:
+        for key in ("simulator_ms_per_turn", "simulator_beynes_x_realtime", "wall_x_realtime", "sim_wall_s"):
+            r[f"{key}_{x['threads']}threads"] = x[key]
+    r["peak_rss_mb"] = max(x["peak_rss_mb"] for x in runs)
     print(json.dumps(r))
     return r
 

@@ -39,7 +39,10 @@ from __future__ import annotations
 
 import heapq
 import math
+import os
+import threading
 from collections.abc import Iterator, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from operator import itemgetter
 
 import numpy as np
@@ -57,13 +60,12 @@ from .spectra import (
     echoes,
     pair_echoes,
     received_power_w,
-    select_pairs,
 )
 from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
 
 DEFAULT_PARAMS = RadarParams()
 
-__all__ = ["simulate", "RadarSimulator", "beam_times_ns", "beam_azimuths_rad"]
+__all__ = ["simulate", "RadarSimulator", "beam_times_ns", "beam_azimuths_rad", "default_threads"]
 
 
 def beam_times_ns(start_t_ns: int, turn: int, config: RadarConfig) -> np.ndarray:
@@ -82,6 +84,23 @@ def beam_azimuths_rad(config: RadarConfig, params: RadarParams = DEFAULT_PARAMS)
 
 
 _POLAR_BIN_RAD = math.radians(0.5)
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def default_threads() -> int:
+    """Threads of a simulator by default: the machine's cores, at most 2 (the turn's work
+    splits in two halves; beyond, the Python glue between the compiled loops dominates)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, min(2, cores or 1))
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """A process-wide pool of ``workers`` threads (shared by the simulators, created once)."""
+    with _POOLS_LOCK:
+        if workers not in _POOLS:
+            _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="radar-sim")
+        return _POOLS[workers]
 
 
 def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
@@ -115,9 +134,10 @@ class RadarSimulator:
     """Computes the up/down spectra of whole turns of a rotating radar in a :class:`World`."""
 
     def __init__(self, world: World, config: RadarConfig, params: RadarParams = DEFAULT_PARAMS,
-                 block_beams: int = 8) -> None:
+                 block_beams: int = 8, threads: int | None = None) -> None:
         self.world, self.config, self.params = world, config, params
-        self.synth = Synthesizer(config, params)
+        self.threads = default_threads() if threads is None else max(1, int(threads))
+        self.synth = Synthesizer(config, params, pool=_pool(1) if self.threads > 1 else None)
         self.block_beams = block_beams
         self.azimuth_rad = beam_azimuths_rad(config, params)
         self._k_range = 4.0 * config.bandwidth_hz * config.modulation_hz / SPEED_OF_LIGHT_MPS
@@ -248,15 +268,17 @@ class RadarSimulator:
         from . import kernels  # numba: compiled (cached) at the first call, not at import
 
         tan_cut = np.tan(np.minimum(window, 1.5))
-        parts = []
-        n = len(beam_dir)
-        mids, halves = kernels.block_spans(beam_dir, self.block_beams)  # np.unwrap of each block's directions
-        for b0 in range(0, n, self.block_beams):
-            sl = slice(b0, min(n, b0 + self.block_beams))
-            mid, half = float(mids[b0 // self.block_beams]), float(halves[b0 // self.block_beams])
+        n, bb = len(beam_dir), self.block_beams
+        mids, halves = kernels.block_spans(beam_dir, bb)  # np.unwrap of each block's directions
+
+        rx, ry = radar_xy[:, 0].copy(), radar_xy[:, 1].copy()
+
+        def block(b0):  # the (beam, scatterer) pairs of the block of beams starting at b0
+            sl = slice(b0, min(n, b0 + bb))
+            mid, half = float(mids[b0 // bb]), float(halves[b0 // bb])
             j = kernels.block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack)
             if j.size == 0:
-                continue
+                return None
             vis = None
             pos = radar_xy[(sl.start + sl.stop - 1) // 2]
             if len(segs):
@@ -269,10 +291,16 @@ class RadarSimulator:
                     jc = j[cand]
                     tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
                     vis = tr if vis is None else tr * vis
-            bi, si, *d = select_pairs(radar_xy[sl], beam_dir[sl], np.column_stack([sx[j], sy[j]]),
-                                      tan_cut[j], r_lim**2, vis)
+            # select_pairs' compiled loop, called directly with the block's arrays (no copies)
+            bi, si, d = kernels.static_pairs(rx[sl], ry[sl], np.cos(beam_dir[sl]), np.sin(beam_dir[sl]), sx[j],
+                                             sy[j], tan_cut[j], r_lim**2, np.ones(len(j), bool) if vis is None
+                                             else vis > 0)
             shadow = vis[si] if vis is not None and vis.dtype != bool else None
-            parts.append((sl.start + bi, j[si], d, shadow))
+            return sl.start + bi, j[si], d, shadow
+
+        # blocks are independent: contiguous runs of them on the threads, joined in block order
+        parts = [p for p in self._map_chunks(lambda run: [block(b0) for b0 in run], range(0, n, bb))
+                 if p is not None]
         if not parts:
             return Echoes.concat([])
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
@@ -281,8 +309,29 @@ class RadarSimulator:
         shadow = None
         if any(p[3] is not None for p in parts):  # x 1.0 where a block had none: exact
             shadow = np.concatenate([np.ones(len(p[0])) if p[3] is None else p[3] for p in parts])
-        return pair_echoes(beam, radar_vxy[beam], *d, sz[jj], None, rcs[jj], phase[jj], area[jj], shadow,
-                           self.config, self.params)
+
+        def physics(run):  # element-wise per pair: chunks joined in order give the same bits
+            sl = slice(run.start, run.stop)
+            return [pair_echoes(beam[sl], radar_vxy[beam[sl]], *(a[sl] for a in d), sz[jj[sl]], None, rcs[jj[sl]],
+                                phase[jj[sl]], area[jj[sl]], None if shadow is None else shadow[sl],
+                                self.config, self.params)]
+
+        return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
+
+    def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
+        """``fn`` of ``threads`` contiguous runs of ``items`` (lists), concatenated in run order: the
+        result does not depend on the thread count or on scheduling."""
+        k = min(self.threads, len(items) // min_len)
+        if k <= 1:
+            return fn(items)
+        cuts = [items.start + len(items) * i // k * items.step for i in range(k + 1)]
+        runs = [range(cuts[i], cuts[i + 1], items.step) for i in range(k)]
+        pool = _pool(k - 1)
+        futures = [pool.submit(fn, r) for r in runs[1:]]
+        out = fn(runs[0])  # this thread takes the first run
+        for f in futures:
+            out.extend(f.result())
+        return out
 
     def _swept_mover_discs(self, t_ns, n_samples: int = 9):
         """The movers' discs at ``n_samples`` times of the turn, widened by the motion between."""
@@ -385,7 +434,7 @@ def simulate(world: World, trajectory, config: RadarConfig, rng: np.random.Gener
              start_t_ns: int | None = None, duration_ns: int | None = None,
              sensors: Mapping[str, object] | None = None, *,
              params: RadarParams = DEFAULT_PARAMS,
-             movers_rate_hz: float = 10.0) -> Iterator[tuple[int, str, object]]:
+             movers_rate_hz: float = 10.0, threads: int | None = None) -> Iterator[tuple[int, str, object]]:
     """Yield ``(t_ns, port, msg)`` of a simulated acquisition, in non-decreasing time.
 
     ``trajectory`` has ``pose(t_ns)``, ``velocity(t_ns)``, ``start_ns``, ``end_ns``
@@ -393,7 +442,9 @@ def simulate(world: World, trajectory, config: RadarConfig, rng: np.random.Gener
     start_t_ns + duration_ns)`` clipped to the trajectory's end. ``sensors`` maps a port name
     to an object with ``samples(trajectory, rng, start_ns, end_ns)``. ``rng`` is split
     (``Generator.spawn``) into independent streams for the radar's thermal noise and each
-    sensor, so adding a sensor does not change the radar's noise.
+    sensor, so adding a sensor does not change the radar's noise. ``threads`` (default
+    :func:`default_threads`) share each turn's work; the result is the same bit for bit
+    whatever their number.
     """
     start = trajectory.start_ns if start_t_ns is None else int(start_t_ns)
     end = int(trajectory.end_ns)
@@ -401,7 +452,7 @@ def simulate(world: World, trajectory, config: RadarConfig, rng: np.random.Gener
         end = min(end, start + int(duration_ns))
     sensors = dict(sensors or {})
     radar_rng, *sensor_rngs = rng.spawn(1 + len(sensors))
-    sim = RadarSimulator(world, config, params)
+    sim = RadarSimulator(world, config, params, threads=threads)
     streams = [_beam_stream(sim, trajectory, start, end, radar_rng)]
     if world.movers:
         streams.append(_mover_stream(world, start, end, movers_rate_hz))

@@ -315,8 +315,9 @@ def select_pairs(radar_xy_m, beam_dir_rad, sc_xy_m, tan_cut, r2_max: float, visi
 class Synthesizer:
     """Up/down power spectra of many beams from their echoes (NUFFT formulation above)."""
 
-    def __init__(self, config: RadarConfig, params: RadarParams = RadarParams()):
+    def __init__(self, config: RadarConfig, params: RadarParams = RadarParams(), pool=None):
         self.config, self.params = config, params
+        self.pool = pool  # an Executor: the down ramp's NUFFT beside the up ramp's (same bits)
         self.fs_hz = 2.0 * config.n_bins * config.bin_hz
         # roof: two ramps of 1/(2 Fm); single ramp: one of 1/Fm, labelled on the nominal axis
         self.single_ramp = not config.doppler
@@ -391,15 +392,29 @@ class Synthesizer:
         """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT,
         then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
         s = self.signal(beam, f_hz, np.sqrt(2.0 * power_w), phase_rad, n_beams).real
+        return self._spectrum(s, *self._draws(beam, f_hz, power_w, n_beams, rng, range_m))
+
+    def _draws(self, beam, f_hz, power_w, n_beams: int, rng, range_m):
+        """The random parts of a ramp, drawn in :meth:`ramp`'s order: thermal noise samples
+        and phase-noise skirts (None when off)."""
+        noise = skirts = None
         if self.params.thermal_noise:
-            s = s + rng.standard_normal(s.shape) * self.noise_sigma
-        spec = self.power_spectrum(s)
+            noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
         p = self.params
         if p.phase_noise_dbc_hz is not None and range_m is not None:
-            spec += phase_noise_skirts(
+            skirts = phase_noise_skirts(
                 beam, f_hz, power_w, range_m, n_beams, self.config.bin_hz, self.config.n_bins,
                 self.config.bin_hz * self.hz_per_nominal_hz, self.ramp_s, self.enbw_bins,
                 self.noise_per_bin_w, p.phase_noise_dbc_hz, p.phase_noise_offset_hz, rng).astype(np.float32)
+        return noise, skirts
+
+    def _spectrum(self, s, noise, skirts) -> np.ndarray:
+        """:meth:`ramp` once the echoes' signal ``s`` and the draws are there."""
+        if noise is not None:
+            s = s + noise
+        spec = self.power_spectrum(s)
+        if skirts is not None:
+            spec += skirts
         return spec
 
     def spectra(self, e: Echoes, n_beams: int, rng) -> tuple[np.ndarray, np.ndarray]:
@@ -425,8 +440,18 @@ class Synthesizer:
                            n_beams, rng, e.range_m)
             return up, np.zeros((n_beams, 0), np.float32)
         half = 0.5 * self.ramp_s * e.radial_mps
-        up = self.ramp(e.beam, f_r + f_d, e.power_w, e.phase_rad + k * (e.range_m - half),
-                       n_beams, rng, e.range_m)
-        down = self.ramp(e.beam, f_r - f_d, e.power_w, e.phase_rad + k * (e.range_m + half),
-                         n_beams, rng, e.range_m)
-        return up, down
+        f_up, ph_up = f_r + f_d, e.phase_rad + k * (e.range_m - half)
+        f_down, ph_down = f_r - f_d, e.phase_rad + k * (e.range_m + half)
+        if self.pool is None:
+            up = self.ramp(e.beam, f_up, e.power_w, ph_up, n_beams, rng, e.range_m)
+            down = self.ramp(e.beam, f_down, e.power_w, ph_down, n_beams, rng, e.range_m)
+            return up, down
+        # the down ramp on a second thread: its NUFFT (no randomness) from now, its spectrum once this
+        # thread has drawn both ramps' noise in ramp()'s order (a one-worker pool runs them in turn)
+        amp = np.sqrt(2.0 * e.power_w)
+        job = self.pool.submit(self.signal, e.beam, f_down, amp, ph_down, n_beams)
+        draws_up = self._draws(e.beam, f_up, e.power_w, n_beams, rng, e.range_m)
+        draws_down = self._draws(e.beam, f_down, e.power_w, n_beams, rng, e.range_m)
+        down = self.pool.submit(lambda: self._spectrum(job.result().real, *draws_down))
+        up = self._spectrum(self.signal(e.beam, f_up, amp, ph_up, n_beams).real, *draws_up)
+        return up, down.result()
