@@ -135,3 +135,18 @@ def test_block_candidates_are_the_bearing_window_then_the_near_ones() -> None:
         want = j[np.abs((bearing[j] - mid + np.pi) % (2 * np.pi) - np.pi) <= half + slack[j]]
         np.testing.assert_array_equal(got, want)
         assert len(want) > 0
+
+
+def test_tabulated_pattern_gain_is_the_numpy_interpolation() -> None:
+    from impala_radar.simulator.antenna import AzimuthPattern
+
+    pat = AzimuthPattern(math.radians(1.8), -25.0)
+    rng = np.random.default_rng(5)
+    d = np.concatenate([rng.uniform(-0.2, 0.2, 20000), rng.uniform(-math.pi, math.pi, 2000), [0.0, -0.0, 3.0]])
+    pos = np.minimum(np.abs(d) * pat._u_per_rad * pat._inv_step, len(pat._g2) - 1.0)
+    k = np.minimum(pos.astype(np.intp), len(pat._g2) - 2)
+    want = pat._g2[k] * (1.0 - (pos - k)) + pat._g2[k + 1] * (pos - k)
+    np.testing.assert_array_equal(kernels.table_gain2(d, pat._u_per_rad, pat._inv_step, pat._g2), want)
+    np.testing.assert_array_equal(pat.gain2(d), want)
+    assert pat.gain2(d[:3]).tolist() == want[:3].tolist()  # short arrays: the numpy path, the same values
+    assert want[-1] == 0.0 and want[-3] == 1.0  # beyond the table nothing; the boresight the peak

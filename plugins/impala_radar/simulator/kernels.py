@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 __all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "static_pairs", "segments_clear",
-           "discs_transmission", "block_spans", "block_candidates"]
+           "discs_transmission", "block_spans", "block_candidates", "table_gain2"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -228,3 +228,20 @@ def block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slac
             out[n] = j
             n += 1
     return out[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def table_gain2(d_azimuth_rad, u_per_rad, inv_step, g2):
+    """:meth:`.antenna.AzimuthPattern.gain2` of the tabulated pattern: u = |d| u_per_rad, then
+    the linear interpolation in ``g2`` (step 1 / ``inv_step``), the same float64 operations."""
+    n, top = d_azimuth_rad.shape[0], g2.shape[0] - 1.0
+    k_max = g2.shape[0] - 2
+    out = np.empty(n)
+    for i in range(n):
+        pos = abs(d_azimuth_rad[i]) * u_per_rad * inv_step
+        if not pos <= top:  # np.minimum
+            pos = top
+        k = min(np.intp(pos), k_max)
+        frac = pos - k
+        out[i] = g2[k] * (1.0 - frac) + g2[k + 1] * frac
+    return out
