@@ -2,12 +2,15 @@
 
 Prints simulated turns per second, the ratio to real time (the radar turns once per
 second), the split of the CPU time per turn by stage, and the peak resident memory; the last
-line is one JSON object. The process is pinned to one core and the rates use its CPU time
-(``time.process_time``), so other load on the machine does not distort them; the wall-clock
-ratio is printed beside. ``--turns 662`` runs the whole Beynes mission, which must stay
+line is one JSON object. It runs the simulator with 1 thread pinned to one core, then with 2
+threads on two cores (``--threads``); the rates use the process's CPU time
+(``time.process_time``, all threads), so other load on the machine does not distort them,
+and the wall-clock ratio is printed beside (what two threads buy; meaningful on a quiet
+machine only). The JSON's headline keys are the first run's (1 thread); the 2-thread figures
+carry a ``_2threads`` suffix. ``--turns 662`` runs the whole Beynes mission, which must stay
 memory-bounded (one turn in flight).
 
-Stages (exclusive CPU time of the functions, by :class:`_Stages` wrappers, ms per turn):
+Stages (exclusive CPU time of the functions, by :class:`_Stages` wrappers, summed over the threads, ms per turn):
 ``scene`` the turn's scatterers (k-d tree query, clutter split, jitter, ghosts, azimuth
 windows, shadow prefilter); ``occlusion`` walls and discs per block; ``echoes`` the (beam, scatterer) pairs in the
 beams' pattern, their geometry, pattern gain and radar equation; ``movers``; ``blocks`` the rest

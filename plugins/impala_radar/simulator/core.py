@@ -33,6 +33,14 @@ transcendental functions stay numpy's. Movers are evaluated over
 the whole turn at every beam time, occlusion included (walls and static discs). With the
 transmitter leakage echoes, all echoes of the turn then go through one
 :class:`~impala_radar.simulator.spectra.Synthesizer` call.
+
+Threads (``threads``, default :func:`default_threads`: the cores, at most 2): the blocks
+run in contiguous runs, one per thread, and so do the echo physics of the pairs (element-wise);
+the runs are joined in their order, and the down ramp's NUFFT and spectrum run beside the up
+ramp's while this thread draws both ramps' noise in the one-thread order. The compiled loops
+release the GIL, so does numpy on large arrays. A mission is the same bit for bit whatever
+the thread count; about 60 % of a turn's CPU time stays on the calling thread (scene, draws,
+glue), so two threads shorten a turn's wall time by up to 1.6x on a quiet machine.
 """
 
 from __future__ import annotations
