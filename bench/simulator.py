@@ -17,7 +17,8 @@ beams' pattern, their geometry, pattern gain and radar equation; ``movers``; ``b
 of the turn loop (block selection, culling); ``spread`` the NUFFT (spreading onto the grid
 and its inverse FFT); ``noise`` thermal noise and the ramp's glue; ``fft`` the windowed
 spectrum; ``phase_noise`` the skirts; ``adc`` the output stage; ``stream`` the rest (beam
-messages, proprioceptive sensors, merge). The first call compiles the numba loops once per
+messages, proprioceptive sensors, merge; with threads, also the glue the second thread runs between
+the wrapped functions). The first call compiles the numba loops once per
 machine (cached on disk); the world build and that warm-up are outside the figures.
 
     python bench/simulator.py              # 20 turns, < 1 min
