@@ -97,6 +97,11 @@ class AzimuthPattern:
 
     def gain2(self, d_azimuth_rad):
         """Two-way normalised power pattern at azimuth offsets (radians)."""
+        if self.pedestal is not None and np.ndim(d_azimuth_rad) == 1 and len(d_azimuth_rad) > 64:
+            from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+            return kernels.table_gain2(np.ascontiguousarray(d_azimuth_rad, float), self._u_per_rad,
+                                       self._inv_step, self._g2)
         x = self.u(d_azimuth_rad)
         if self.pedestal is None:
             return np.exp(-8.0 * math.log(2.0) * x * x)

@@ -66,6 +66,8 @@ class Simulator(Source):
                        "at most a day)")
     epoch_utc = Param(str, default=DEFAULT_EPOCH, doc="UTC date and time of the mission's start "
                       "(ISO 8601, e.g. 2026-01-01T00:00:00Z); empty: t = 0")
+    threads = Param(int, default=0, ge=0, le=64, doc="threads sharing each antenna turn's work (0: the cores, "
+                    "at most 2); the mission is the same bit for bit whatever their number")
     beams = Output(RadarBeam, doc="radar beams, each at the vehicle pose of its own time")
     odometer = Output(Speed, doc="odometer speed (scale error, noise, slip)")
     gyro = Output(YawRate, doc="gyrometer yaw rate (bias, noise, bias random walk)")
@@ -84,6 +86,7 @@ class Simulator(Source):
         self.epoch_ns = epoch_ns(self.epoch_utc)  # checked before the world is built
         if self.built is None:
             self.built = self._scenario()
+        self.built.threads = self.threads or None
 
     def generate(self) -> Iterator[tuple[int, str, Any]]:
         e = self.epoch_ns

@@ -75,6 +75,7 @@ class Scenario:
     start_t_ns: int
     duration_ns: int
     movers_rate_hz: float = 10.0
+    threads: int | None = None  # the simulator's threads (None: core.default_threads); same bits whatever
 
     def acquisition_rng(self) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(self.seed).spawn(2)[1])
@@ -85,7 +86,7 @@ class Scenario:
 
         return simulate(self.world, self.trajectory, self.config, self.acquisition_rng(),
                         self.start_t_ns, self.duration_ns, self.sensors, params=self.params,
-                        movers_rate_hz=self.movers_rate_hz)
+                        movers_rate_hz=self.movers_rate_hz, threads=self.threads)
 
 
 def scenario_path(name_or_path: str | Path) -> Path:

@@ -47,12 +47,12 @@ by gridding (Dutt-Rokhlin, Greengard-Lee; FINUFFT's "exponential of semicircle" 
 Kernel and phasors are evaluated in float32 (SIMD; relative error 1e-7). The error of the
 resulting power spectrum is below -100 dB relative to the strongest echo (checked against
 direct summation in tests/radar/test_sim_spectra.py), far under the Hann sidelobes and the
-thermal noise. Cost per ramp: 6 kernel values per echo (np.bincount over
-a whole turn) plus two FFTs per beam, versus 29 bins per echo for a Hann DTFT summed
-directly in the frequency domain and truncated at -60 dB, and N exponentials per echo for
-time-domain synthesis. The window is applied in the time domain, so any window and the
-exact fold of negative beat frequencies (near, fast targets) of the real mixer output come
-for free; echoes with |f| >= fs/2 are removed (ideal anti-aliasing filter).
+thermal noise. Cost per ramp: 6 kernel values per echo (one compiled spreading loop over a
+whole turn, :mod:`.kernels`, the exponential being numpy's) plus two FFTs per beam, versus
+29 bins per echo for a Hann DTFT summed directly in the frequency domain and truncated at
+-60 dB, and N exponentials per echo for time-domain synthesis. The window is applied in the
+time domain, so any window and the exact fold of negative beat frequencies (near, fast
+targets) of the real mixer output come for free; echoes with |f| >= fs/2 are removed (ideal anti-aliasing filter).
 
 Echoes weaker than the noise per bin by ``cull_below_noise_db`` (30 dB) are dropped when
 thermal noise is on: the window spreads each over ~4 bins and a beam holds far fewer of
@@ -83,7 +83,7 @@ from .receiver import phase_noise_skirts
 __all__ = [
     "RadarParams", "Echoes", "Synthesizer", "beat_frequencies_hz", "received_power_w",
     "two_way_gain", "echoes", "noise_power_per_bin_w", "BOLTZMANN_JPK", "azimuth_pattern",
-    "apparent_range_shift_m",
+    "apparent_range_shift_m", "pair_echoes", "select_pairs",
 ]
 
 BOLTZMANN_JPK = 1.380649e-23
@@ -243,47 +243,81 @@ def echoes(beam_index, radar_xy_m, radar_vxy_mps, beam_dir_rad, sc_xy_m, sc_z_m,
     (B, S); ``cut_rad`` the azimuth half-window per scatterer (default: ``pattern_cut_db``);
     ``area_m2`` > 0 marks distributed clutter (grazing law, :mod:`.clutter`).
     """
-    rx, ry = radar_xy_m[:, 0, None], radar_xy_m[:, 1, None]
-    dx, dy = sc_xy_m[..., 0] - rx, sc_xy_m[..., 1] - ry
-    c, s = np.cos(beam_dir_rad)[:, None], np.sin(beam_dir_rad)[:, None]
-    along, across = dx * c + dy * s, dy * c - dx * s
-    r2 = dx * dx + dy * dy
     tan_cut = np.tan(params.cut_azimuth_rad(config) if cut_rad is None else np.minimum(cut_rad, 1.5))
-    mask = (along > 0.0) & (np.abs(across) <= tan_cut * along)
-    mask &= r2 <= range_limit_m**2
-    if visible is not None:
-        mask &= visible > 0
-    bi, si = np.nonzero(mask)
+    bi, si, dx, dy, along, across, r2 = select_pairs(radar_xy_m, beam_dir_rad, sc_xy_m, tan_cut,
+                                               range_limit_m**2, visible)
+    shape = (len(beam_dir_rad), sc_xy_m.shape[-2])
 
     def at(a):  # gather a scatterer-side (S,) or (B, S) array at the selected pairs
-        return np.broadcast_to(a, mask.shape)[bi, si]
+        a = np.asarray(a)
+        return a[si] if a.ndim == 1 and a.shape[0] == shape[1] else np.broadcast_to(a, shape)[bi, si]
 
-    dx, dy, along, across = dx[bi, si], dy[bi, si], along[bi, si], across[bi, si]
-    r_h = np.sqrt(r2[bi, si])
-    dz = at(sc_z_m) - config.height_m
+    return pair_echoes(np.asarray(beam_index)[bi], radar_vxy_mps[bi], dx, dy, along, across, r2, at(sc_z_m),
+                       None if sc_vxy_mps is None else np.column_stack([at(sc_vxy_mps[..., 0]),
+                                                                        at(sc_vxy_mps[..., 1])]),
+                       at(rcs_m2), at(phase_rad), None if area_m2 is None else at(area_m2),
+                       at(visible) if visible is not None and np.asarray(visible).dtype != bool else None,
+                       config, params)
+
+
+def pair_echoes(beam, radar_vxy_mps, dx, dy, along, across, r2, sc_z_m, sc_vxy_mps, rcs_m2, phase_rad,
+                area_m2, transmission, config: RadarConfig, params: RadarParams) -> Echoes:
+    """Echoes of (beam, scatterer) pairs (:func:`echoes` once the pairs are selected): one
+    value per pair in every array, ``dx, dy`` the scatterer's offset from the radar,
+    ``along, across`` along and across the antenna axis, ``r2`` = dx^2 + dy^2;
+    ``sc_vxy_mps`` (n, 2) or None (static), ``area_m2`` None or > 0 for clutter,
+    ``transmission`` None or the two-way transmission of the shadowing discs."""
+    r_h = np.sqrt(r2)
+    dz = sc_z_m - config.height_m
     range_m = np.sqrt(r_h * r_h + dz * dz)
     gain2 = two_way_gain(np.arctan2(across, along), np.arctan2(dz, r_h), config, params)
-    v_rel_x, v_rel_y = -radar_vxy_mps[bi, 0], -radar_vxy_mps[bi, 1]
+    v_rel_x, v_rel_y = -radar_vxy_mps[:, 0], -radar_vxy_mps[:, 1]
     if sc_vxy_mps is not None:
-        v_rel_x = v_rel_x + at(sc_vxy_mps[..., 0])
-        v_rel_y = v_rel_y + at(sc_vxy_mps[..., 1])
+        v_rel_x = v_rel_x + sc_vxy_mps[:, 0]
+        v_rel_y = v_rel_y + sc_vxy_mps[:, 1]
     radial = (dx * v_rel_x + dy * v_rel_y) / range_m  # V = dR/dt, eq. (2) sign convention
-    rcs = at(rcs_m2)
+    rcs = rcs_m2
     if area_m2 is not None:
-        rcs = rcs * grazing_factor(range_m, dz, at(area_m2), params.grazing_ref_deg)
-    if visible is not None and np.asarray(visible).dtype != bool:
-        rcs = rcs * at(visible)
+        rcs = rcs * grazing_factor(range_m, dz, area_m2, params.grazing_ref_deg)
+    if transmission is not None:
+        rcs = rcs * transmission
     power = received_power_w(range_m, rcs, gain2, config, params)
     keep = gain2 >= 10.0 ** (-params.pattern_cut_db / 10.0)
-    return Echoes(np.asarray(beam_index)[bi][keep], range_m[keep], radial[keep], power[keep],
-                  at(phase_rad)[keep])
+    return Echoes(beam[keep], range_m[keep], radial[keep], power[keep], phase_rad[keep])
+
+
+def select_pairs(radar_xy_m, beam_dir_rad, sc_xy_m, tan_cut, r2_max: float, visible):
+    """(beam, scatterer) pairs in front of the antenna within ``tan_cut`` (np.nonzero order),
+    with dx, dy, along, across, r2; static scatterers by a compiled loop (:mod:`.kernels`),
+    moving ones ((B, S, 2) positions) dense in numpy, with the same arithmetic."""
+    c, s = np.cos(beam_dir_rad), np.sin(beam_dir_rad)
+    vis = None if visible is None else np.asarray(visible) > 0
+    if sc_xy_m.ndim == 2 and (vis is None or vis.shape == (len(sc_xy_m),)):
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        vis = np.ones(len(sc_xy_m), bool) if vis is None else vis
+        bi, si, d = kernels.static_pairs(radar_xy_m[:, 0].copy(), radar_xy_m[:, 1].copy(), c, s,
+                                         sc_xy_m[:, 0].copy(), sc_xy_m[:, 1].copy(),
+                                         np.broadcast_to(tan_cut, vis.shape).astype(float), float(r2_max), vis)
+        return bi, si, *d
+    dx, dy = sc_xy_m[..., 0] - radar_xy_m[:, 0, None], sc_xy_m[..., 1] - radar_xy_m[:, 1, None]
+    c, s = c[:, None], s[:, None]
+    along, across = dx * c + dy * s, dy * c - dx * s
+    r2 = dx * dx + dy * dy
+    mask = (along > 0.0) & (np.abs(across) <= tan_cut * along)
+    mask &= r2 <= r2_max
+    if vis is not None:
+        mask &= vis
+    bi, si = np.nonzero(mask)
+    return bi, si, dx[bi, si], dy[bi, si], along[bi, si], across[bi, si], r2[bi, si]
 
 
 class Synthesizer:
     """Up/down power spectra of many beams from their echoes (NUFFT formulation above)."""
 
-    def __init__(self, config: RadarConfig, params: RadarParams = RadarParams()):
+    def __init__(self, config: RadarConfig, params: RadarParams = RadarParams(), pool=None):
         self.config, self.params = config, params
+        self.pool = pool  # an Executor: the down ramp's NUFFT beside the up ramp's (same bits)
         self.fs_hz = 2.0 * config.n_bins * config.bin_hz
         # roof: two ramps of 1/(2 Fm); single ramp: one of 1/Fm, labelled on the nominal axis
         self.single_ramp = not config.doppler
@@ -323,26 +357,23 @@ class Synthesizer:
     def signal(self, beam, f_hz, amplitude, phase_rad, n_beams: int) -> np.ndarray:
         """Complex time samples z (n_beams, N) of sum_i a_i exp(j(2 pi f_i t + phi_i))."""
         # Hand-written type-1 NUFFT (finufft does this; not a dependency, and batching all
-        # beams of a turn into one bincount is what makes it fast here).
+        # beams of a turn into one spreading pass is what makes it fast here).
         ok = np.abs(f_hz) < 0.5 * self.fs_hz
         if not ok.all():
             f_hz, amplitude, phase_rad, beam = f_hz[ok], amplitude[ok], phase_rad[ok], beam[ok]
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
         m_grid, width = self.n_grid, _KERNEL_WIDTH
-        x = (f_hz * (m_grid / self.fs_hz)) % m_grid  # echo position in grid units, [0, M)
-        i0 = np.floor(x)
-        # phi(m h - x_i) at the 6 grid points around x_i, in float32 (error 1e-7 << 1e-5)
-        u = (self._offsets[None, :] - (x - i0).astype(np.float32)[:, None]) * self._u_scale
-        ker = _kernel(u)
+        x = kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
         row = m_grid + width - 1  # one padded row per beam; wrapped columns folded below
-        flat = ((beam.astype(np.intp) * row + i0.astype(np.intp))[:, None]
-                + np.arange(width)).ravel()
+        # phi(m h - x_i) at the 6 grid points around x_i, in float32 (error 1e-7 << 1e-5)
+        arg, base = kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
+                                              np.float32(_KERNEL_BETA))
+        ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
         size = n_beams * row
-        phase32 = (phase_rad % (2.0 * math.pi)).astype(np.float32)
+        phase32 = kernels.wrap_phase32(np.asarray(phase_rad, float))
         amp32 = amplitude.astype(np.float32)
-        a_re = (amp32 * np.cos(phase32))[:, None]
-        a_im = (amp32 * np.sin(phase32))[:, None]
-        b_re = np.bincount(flat, (ker * a_re).ravel(), size)
-        b_im = np.bincount(flat, (ker * a_im).ravel(), size)
+        b_re, b_im = kernels.spread(base, ker, amp32 * np.cos(phase32), amp32 * np.sin(phase32), size)
         padded = (b_re + 1j * b_im).reshape(n_beams, row)
         o = width // 2 - 1  # padded column c holds grid point (c - o) mod M
         b = padded[:, o:o + m_grid].copy()
@@ -361,15 +392,29 @@ class Synthesizer:
         """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT,
         then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
         s = self.signal(beam, f_hz, np.sqrt(2.0 * power_w), phase_rad, n_beams).real
+        return self._spectrum(s, *self._draws(beam, f_hz, power_w, n_beams, rng, range_m))
+
+    def _draws(self, beam, f_hz, power_w, n_beams: int, rng, range_m):
+        """The random parts of a ramp, drawn in :meth:`ramp`'s order: thermal noise samples
+        and phase-noise skirts (None when off)."""
+        noise = skirts = None
         if self.params.thermal_noise:
-            s = s + rng.standard_normal(s.shape) * self.noise_sigma
-        spec = self.power_spectrum(s)
+            noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
         p = self.params
         if p.phase_noise_dbc_hz is not None and range_m is not None:
-            spec += phase_noise_skirts(
+            skirts = phase_noise_skirts(
                 beam, f_hz, power_w, range_m, n_beams, self.config.bin_hz, self.config.n_bins,
                 self.config.bin_hz * self.hz_per_nominal_hz, self.ramp_s, self.enbw_bins,
                 self.noise_per_bin_w, p.phase_noise_dbc_hz, p.phase_noise_offset_hz, rng).astype(np.float32)
+        return noise, skirts
+
+    def _spectrum(self, s, noise, skirts) -> np.ndarray:
+        """:meth:`ramp` once the echoes' signal ``s`` and the draws are there."""
+        if noise is not None:
+            s = s + noise
+        spec = self.power_spectrum(s)
+        if skirts is not None:
+            spec += skirts
         return spec
 
     def spectra(self, e: Echoes, n_beams: int, rng) -> tuple[np.ndarray, np.ndarray]:
@@ -395,8 +440,18 @@ class Synthesizer:
                            n_beams, rng, e.range_m)
             return up, np.zeros((n_beams, 0), np.float32)
         half = 0.5 * self.ramp_s * e.radial_mps
-        up = self.ramp(e.beam, f_r + f_d, e.power_w, e.phase_rad + k * (e.range_m - half),
-                       n_beams, rng, e.range_m)
-        down = self.ramp(e.beam, f_r - f_d, e.power_w, e.phase_rad + k * (e.range_m + half),
-                         n_beams, rng, e.range_m)
-        return up, down
+        f_up, ph_up = f_r + f_d, e.phase_rad + k * (e.range_m - half)
+        f_down, ph_down = f_r - f_d, e.phase_rad + k * (e.range_m + half)
+        if self.pool is None:
+            up = self.ramp(e.beam, f_up, e.power_w, ph_up, n_beams, rng, e.range_m)
+            down = self.ramp(e.beam, f_down, e.power_w, ph_down, n_beams, rng, e.range_m)
+            return up, down
+        # the down ramp on a second thread: its NUFFT (no randomness) from now, its spectrum once this
+        # thread has drawn both ramps' noise in ramp()'s order (a one-worker pool runs them in turn)
+        amp = np.sqrt(2.0 * e.power_w)
+        job = self.pool.submit(self.signal, e.beam, f_down, amp, ph_down, n_beams)
+        draws_up = self._draws(e.beam, f_up, e.power_w, n_beams, rng, e.range_m)
+        draws_down = self._draws(e.beam, f_down, e.power_w, n_beams, rng, e.range_m)
+        down = self.pool.submit(lambda: self._spectrum(job.result().real, *draws_down))
+        up = self._spectrum(self.signal(e.beam, f_up, amp, ph_up, n_beams).real, *draws_up)
+        return up, down.result()

@@ -176,13 +176,13 @@ class World:
         return self.segments[near]
 
     def visible(self, radar_xy_m, x_m, y_m, segments: np.ndarray | None = None,
-                eps_m: float = 0.05, chunk: int = 4096) -> np.ndarray:
+                eps_m: float = 0.05) -> np.ndarray:
         """True where the line of sight radar -> scatterer crosses no occluding segment.
 
         ``radar_xy_m`` (..., 2) broadcasts against ``x_m``/``y_m``; a scatterer lying on a
         segment (a wall's own scatterers) is not hidden by it (ray parameter < 1 - eps/R).
         """
-        # hand-written ray/segment test (shapely could, per pair; this is one numpy pass)
+        # hand-written ray/segment test (shapely could, per pair; this is one compiled pass)
         seg = self.segments if segments is None else segments
         x_m, y_m = np.asarray(x_m, float), np.asarray(y_m, float)
         px = np.asarray(radar_xy_m, float)[..., 0]
@@ -192,18 +192,10 @@ class World:
             return np.ones(shape, bool)
         px, py = np.broadcast_to(px, shape).ravel(), np.broadcast_to(py, shape).ravel()
         qx, qy = np.broadcast_to(x_m, shape).ravel(), np.broadcast_to(y_m, shape).ravel()
-        ax, ay, sx, sy = seg[:, 0], seg[:, 1], seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-        out = np.ones(px.shape, bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for i in range(0, len(px), chunk):
-                sl = slice(i, i + chunk)
-                rx, ry = (qx[sl] - px[sl])[:, None], (qy[sl] - py[sl])[:, None]
-                apx, apy = ax - px[sl, None], ay - py[sl, None]
-                den = rx * sy - ry * sx
-                t = (apx * sy - apy * sx) / den  # along the ray: 0 radar, 1 scatterer
-                u = (apx * ry - apy * rx) / den  # along the segment
-                t_max = 1.0 - eps_m / np.maximum(np.hypot(rx, ry), eps_m)
-                out[sl] = ~((t > 0.0) & (t < t_max) & (u >= 0.0) & (u <= 1.0)).any(axis=1)
+        from .kernels import segments_clear  # numba: compiled (cached) at the first call, not at import
+
+        out = segments_clear(np.ascontiguousarray(px), np.ascontiguousarray(py), np.ascontiguousarray(qx),
+                             np.ascontiguousarray(qy), np.ascontiguousarray(seg, float), float(eps_m))
         return out.reshape(shape)
 
 
@@ -218,7 +210,7 @@ def car_discs(x_m, y_m, heading_rad) -> np.ndarray:
 
 
 def disc_transmission(radar_xy_m, radar_z_m: float, x_m, y_m, z_m, discs: np.ndarray,
-                      eps_m: float = 0.05, chunk: int = 8192) -> np.ndarray:
+                      eps_m: float = 0.05) -> np.ndarray:
     """Two-way power transmission of the line of sight radar -> scatterer through ``discs``.
 
     A disc (x, y, r, z0, z1, T) shadows a scatterer when the ray passes within r of its
@@ -237,19 +229,11 @@ def disc_transmission(radar_xy_m, radar_z_m: float, x_m, y_m, z_m, discs: np.nda
     px, py = np.broadcast_to(px, shape).ravel(), np.broadcast_to(py, shape).ravel()
     qx, qy = np.broadcast_to(x_m, shape).ravel(), np.broadcast_to(y_m, shape).ravel()
     qz = np.broadcast_to(np.asarray(z_m, float), shape).ravel()
-    cx, cy, r, z0, z1, tr = (discs[:, i] for i in range(6))
-    for i in range(0, len(px), chunk):
-        sl = slice(i, i + chunk)
-        rx, ry = (qx[sl] - px[sl])[:, None], (qy[sl] - py[sl])[:, None]
-        l2 = np.maximum(rx * rx + ry * ry, 1e-12)
-        ax, ay = cx - px[sl, None], cy - py[sl, None]
-        t = (ax * rx + ay * ry) / l2
-        ex, ey = ax - t * rx, ay - t * ry
-        z_ray = radar_z_m + t * (qz[sl, None] - radar_z_m)
-        hit = ((t > 0.0) & (t < 1.0 - eps_m / np.sqrt(l2)) & (ex * ex + ey * ey < r * r)
-               & (z_ray >= z0) & (z_ray <= z1))
-        if hit.any():
-            out[sl] = np.where(hit, tr, 1.0).prod(axis=1)
+    from .kernels import discs_transmission  # numba: compiled (cached) at the first call, not at import
+
+    out = discs_transmission(np.ascontiguousarray(px), np.ascontiguousarray(py), np.ascontiguousarray(qx),
+                             np.ascontiguousarray(qy), np.ascontiguousarray(qz), float(radar_z_m),
+                             np.ascontiguousarray(discs, float), float(eps_m))
     return out.reshape(shape)
 
 

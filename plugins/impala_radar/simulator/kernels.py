@@ -1,0 +1,247 @@
+"""Compiled loops of the simulator: NUFFT spreading (:class:`.spectra.Synthesizer`) and the
+beam x scatterer pairs of static echoes (:func:`.spectra.echoes`).
+
+Numba (``cache=True``: compiled once per machine into ``__pycache__``, about 2 s, then
+loaded in milliseconds); this module is imported by the first :meth:`Synthesizer.signal`
+call, never by the plugin's import. The loops do what the numpy expressions they replace
+did, in the same order and the same float types, so the spectra are bit for bit those of
+the numpy formulation: the kernel's exponential and the phasors' cosines stay numpy's
+(its SIMD ``exp``/``cos``/``sin`` round differently from libm); what is compiled is the
+arithmetic around them (one pass instead of ten over (echoes x 6) arrays) and the
+accumulation onto the grid, whose float64 sums run in the order ``np.bincount`` used.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "static_pairs", "segments_clear",
+           "discs_transmission", "block_spans", "block_candidates", "table_gain2"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _mod(a: float, b: float) -> float:
+    """numpy's float remainder (npy_divmod): fmod, moved into [0, b) for b > 0."""
+    r = a if -b < a < b else np.fmod(a, b)  # fmod is exact (numba has no math.fmod): a itself when |a| < b
+    if r != 0.0:
+        if (b < 0.0) != (r < 0.0):
+            r += b
+    else:
+        r = math.copysign(0.0, b)
+    return r
+
+
+@numba.njit(cache=True, nogil=True)
+def grid_positions(f_hz, scale, m_grid):
+    """``(f_hz * scale) % m_grid``: each echo's position on the spreading grid, in [0, M)."""
+    out = np.empty(f_hz.shape[0])
+    for i in range(f_hz.shape[0]):
+        out[i] = _mod(f_hz[i] * scale, m_grid)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def wrap_phase32(phase_rad):
+    """``(phase % 2 pi).astype(float32)``."""
+    out = np.empty(phase_rad.shape[0], np.float32)
+    two_pi = 2.0 * math.pi
+    for i in range(phase_rad.shape[0]):
+        out[i] = np.float32(_mod(phase_rad[i], two_pi))
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def kernel_arguments(x, beam, row, offsets, u_scale, beta):
+    """The exponent beta (sqrt(1 - u^2) - 1) of the ES kernel at the grid points around each
+    echo (float32, (n, width)) and the flat index of each echo's first grid point."""
+    n, width = x.shape[0], offsets.shape[0]
+    arg = np.empty((n, width), np.float32)
+    base = np.empty(n, np.intp)
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    for i in range(n):
+        i0 = math.floor(x[i])
+        frac = np.float32(x[i] - i0)
+        base[i] = np.intp(beam[i]) * row + np.intp(i0)
+        for k in range(width):
+            u = (offsets[k] - frac) * u_scale
+            v = one - u * u
+            if not v >= zero:  # np.maximum(v, 0)
+                v = zero
+            arg[i, k] = beta * (np.sqrt(v) - one)
+    return arg, base
+
+
+@numba.njit(cache=True, nogil=True)
+def spread(base, ker, a_re, a_im, size):
+    """Grid sums b[base_i + k] += ker[i, k] a_i (float32 products, float64 sums in echo order)."""
+    b_re = np.zeros(size)
+    b_im = np.zeros(size)
+    for i in range(base.shape[0]):
+        ar, ai, b = a_re[i], a_im[i], base[i]
+        for k in range(ker.shape[1]):
+            w = ker[i, k]
+            b_re[b + k] += np.float64(w * ar)
+            b_im[b + k] += np.float64(w * ai)
+    return b_re, b_im
+
+
+@numba.njit(cache=True, nogil=True)
+def static_pairs(rx, ry, c, s, sx, sy, tan_cut, r2_max, visible):
+    """The (beam, scatterer) pairs where a static scatterer lies in front of the antenna,
+    within ``tan_cut`` of its axis, ``r2_max`` of squared range and ``visible``, in
+    ``np.nonzero`` order (beam-major), with their offsets dx, dy, along, across and r2."""
+    nb, ns = rx.shape[0], sx.shape[0]
+    bi = np.empty(nb * ns, np.intp)
+    si = np.empty(nb * ns, np.intp)
+    out = np.empty((5, nb * ns))
+    n = 0
+    for b in range(nb):
+        for j in range(ns):
+            if not visible[j]:
+                continue
+            dx = sx[j] - rx[b]
+            dy = sy[j] - ry[b]
+            along = dx * c[b] + dy * s[b]
+            across = dy * c[b] - dx * s[b]
+            r2 = dx * dx + dy * dy
+            if along > 0.0 and abs(across) <= tan_cut[j] * along and r2 <= r2_max:
+                bi[n], si[n] = b, j
+                out[0, n], out[1, n], out[2, n], out[3, n], out[4, n] = dx, dy, along, across, r2
+                n += 1
+    return bi[:n], si[:n], out[:, :n]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def segments_clear(px, py, qx, qy, seg, eps_m):
+    """True where the ray p -> q crosses none of ``seg`` (a, b) (:meth:`.world.World.visible`;
+    the same arithmetic, stopping at the first crossing)."""
+    n = px.shape[0]
+    out = np.ones(n, np.bool_)
+    for i in range(n):
+        rx, ry = qx[i] - px[i], qy[i] - py[i]
+        t_max = 1.0 - eps_m / max(np.hypot(rx, ry), eps_m)
+        for k in range(seg.shape[0]):
+            sx, sy = seg[k, 2] - seg[k, 0], seg[k, 3] - seg[k, 1]
+            apx, apy = seg[k, 0] - px[i], seg[k, 1] - py[i]
+            den = rx * sy - ry * sx
+            t = (apx * sy - apy * sx) / den  # along the ray: 0 radar, 1 scatterer
+            u = (apx * ry - apy * rx) / den  # along the segment
+            if t > 0.0 and t < t_max and u >= 0.0 and u <= 1.0:
+                out[i] = False
+                break
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def discs_transmission(px, py, qx, qy, qz, radar_z_m, discs, eps_m):
+    """Product of the transmissions of the discs the ray p -> q crosses
+    (:func:`.world.disc_transmission`; the same arithmetic, products in disc order)."""
+    n = px.shape[0]
+    out = np.ones(n)
+    for i in range(n):
+        rx, ry = qx[i] - px[i], qy[i] - py[i]
+        l2 = max(rx * rx + ry * ry, 1e-12)
+        t_max = 1.0 - eps_m / np.sqrt(l2)
+        p = 1.0
+        for k in range(discs.shape[0]):
+            ax, ay = discs[k, 0] - px[i], discs[k, 1] - py[i]
+            t = (ax * rx + ay * ry) / l2
+            if not (t > 0.0 and t < t_max):
+                continue
+            ex, ey = ax - t * rx, ay - t * ry
+            z_ray = radar_z_m + t * (qz[i] - radar_z_m)
+            if ex * ex + ey * ey < discs[k, 2] * discs[k, 2] and z_ray >= discs[k, 3] and z_ray <= discs[k, 4]:
+                p *= discs[k, 5]
+        out[i] = p
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _wrap(a: float) -> float:
+    """:func:`impala_flow.msgs.wrap_angle` of a float: (a + pi) % 2 pi - pi."""
+    return _mod(a + math.pi, 2.0 * math.pi) - math.pi
+
+
+@numba.njit(cache=True, nogil=True)
+def block_spans(beam_dir, block):
+    """Per block of ``block`` beams: the middle direction and the half-span of its beams'
+    directions once unwrapped (``np.unwrap`` of the block, then its ends)."""
+    n = beam_dir.shape[0]
+    nb = (n + block - 1) // block
+    mid, half = np.empty(nb), np.empty(nb)
+    for b in range(nb):
+        lo, hi = b * block, min(n, (b + 1) * block)
+        c = 0.0  # np.unwrap: cumulative correction of the jumps beyond pi
+        for k in range(lo + 1, hi):
+            dd = beam_dir[k] - beam_dir[k - 1]
+            ddmod = _mod(dd + math.pi, 2.0 * math.pi) - math.pi
+            if ddmod == -math.pi and dd > 0.0:
+                ddmod = math.pi
+            pc = ddmod - dd
+            if abs(dd) < math.pi:
+                pc = 0.0
+            c = pc if k == lo + 1 else c + pc
+        first, last = beam_dir[lo], beam_dir[hi - 1] + c if hi - 1 > lo else beam_dir[lo]
+        mid[b], half[b] = _wrap(0.5 * (first + last)), 0.5 * abs(last - first)
+    return mid, half
+
+
+@numba.njit(cache=True, nogil=True)
+def block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack):
+    """Scatterers whose bearing from the turn centre may fall in a block's beams: the far ones
+    (sorted by bearing) within ``half + far_slack`` of ``mid`` by binary search, then the near
+    ones, each kept if |wrap(bearing - mid)| <= half + its slack."""
+    out = np.empty(far.shape[0] + near.shape[0], np.intp)
+    n = 0
+    w = half + far_slack
+    lo, hi = mid - w, mid + w
+    ranges = np.empty((3, 2))
+    nr = 1
+    if w >= math.pi:
+        ranges[0, 0], ranges[0, 1] = -np.inf, np.inf
+    else:
+        ranges[0, 0], ranges[0, 1] = max(lo, -math.pi), min(hi, math.pi)
+        if lo < -math.pi:
+            ranges[nr, 0], ranges[nr, 1] = lo + 2.0 * math.pi, math.pi
+            nr += 1
+        if hi > math.pi:
+            ranges[nr, 0], ranges[nr, 1] = -math.pi, hi - 2.0 * math.pi
+            nr += 1
+    for r in range(nr):
+        if w >= math.pi:
+            i0, i1 = 0, far.shape[0]
+        else:
+            i0 = np.searchsorted(far_bearing, ranges[r, 0], side="left")
+            i1 = np.searchsorted(far_bearing, ranges[r, 1], side="right")
+        for i in range(i0, i1):
+            j = far[i]
+            if abs(_wrap(bearing[j] - mid)) <= half + slack[j]:
+                out[n] = j
+                n += 1
+    for i in range(near.shape[0]):
+        j = near[i]
+        if abs(_wrap(bearing[j] - mid)) <= half + slack[j]:
+            out[n] = j
+            n += 1
+    return out[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def table_gain2(d_azimuth_rad, u_per_rad, inv_step, g2):
+    """:meth:`.antenna.AzimuthPattern.gain2` of the tabulated pattern: u = |d| u_per_rad, then
+    the linear interpolation in ``g2`` (step 1 / ``inv_step``), the same float64 operations."""
+    n, top = d_azimuth_rad.shape[0], g2.shape[0] - 1.0
+    k_max = g2.shape[0] - 2
+    out = np.empty(n)
+    for i in range(n):
+        pos = abs(d_azimuth_rad[i]) * u_per_rad * inv_step
+        if not pos <= top:  # np.minimum
+            pos = top
+        k = min(np.intp(pos), k_max)
+        frac = pos - k
+        out[i] = g2[k] * (1.0 - frac) + g2[k + 1] * frac
+    return out
