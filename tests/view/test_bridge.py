@@ -184,7 +184,12 @@ def test_a_client_that_never_reads_does_not_hold_the_graph(mission: Path) -> Non
     calls, sent, unwatched = map(int, m.groups())
     with MissionReader(mission) as r:
         recorded = sum(c.count for c in r.info().channels if not c.mirror_of)
-    assert calls == recorded == sent + unwatched + sum(_lost(text, "view.").values())
+    lost = _lost(text, "view.")
+    # the SDK's slow-client drops are of messages already counted as sent (it drops them from the
+    # client's queue): reported apart, never more than were sent
+    slow = lost.pop(("clients", "slow-client drops (at least)"), 0)
+    assert calls == recorded == sent + unwatched + sum(lost.values())
+    assert slow <= sent
 
 
 def test_a_bad_file_is_one_line_exit_1(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
