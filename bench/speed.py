@@ -18,14 +18,16 @@ Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once)
   and graphs/odometry_navtech.yaml on the imported head with ``impala-flow run``, x real time
   start-up included (>= 3x and >= 6x);
 - ``radiate_rslam``: graphs/oxford.yaml in-process, ms per turn of each component: panoramic
-  builder (<= 15), R-SLAM (<= 40), FMT registration (<= 15), evaluators, and the engine's
-  share (replay, delivery), with R-SLAM's and FMT's ATE and R-SLAM's map size;
+  builder (<= 15), R-SLAM (<= 40), FMT registration (<= 15), evaluators, and the rest of
+  the wall time per turn ("engine": replay, delivery, the executor and the reports written
+  at stop), with R-SLAM's and FMT's ATE and R-SLAM's map size;
 - ``radiate_odometry``: graphs/odometry_navtech.yaml in-process, DistortionOdometry (<= 20);
 - ``radiate_kissicp``: graphs/kiss_icp_navtech.yaml in-process: the peer's ms per scan
   (kiss-icp's registration, and the peak extractor that feeds it) and its ATE;
 - ``beynes``: a simulated Beynes mission (radar.Simulator in the graph, IMPALA preset, 1 turn
   per second) through the front end (panoramic <= 15, FuzzyPairer <= 15, speckle) and R-SLAM
-  (<= 30), the simulator's x real time (>= 20) and R-SLAM's ATE against the RTK-GPS;
+  (<= 30), the simulator's x real time (>= 20; wall time of its ``generate``, with the
+  simulator's own threads, 2 by default on 2 cores) and R-SLAM's ATE against the RTK-GPS;
 - ``semi_urban``: a simulated semi-urban mission through DistortionOdometry (<= 20);
 - ``campus``: a simulated campus-open mission through the panoramic builder and the FMT
   registration (<= 15).
