@@ -542,6 +542,29 @@ def iter_records(buf: memoryview) -> Iterator[tuple[int, memoryview]]:
         pos = body_at + length
 
 
+_MSG_REC = struct.Struct("<QHIQ")  # a message record after its opcode: length, channel, sequence, log time
+
+
+def select_messages(records: memoryview, wanted: dict | frozenset, lo: int | None,
+                    hi: int | None) -> list[tuple[int, int, int, memoryview]]:
+    """(log time, channel id, sequence, payload view) of the messages of ``records`` (a
+    decompressed chunk or loose run) on the channels ``wanted`` with lo <= log time < hi
+    (None: unbounded). :func:`iter_records` and :data:`MSG_HEAD` in one pass: one unpack per
+    record (its length and, for a message, its head), a payload view only for those kept."""
+    out = []
+    head, length_of, msg = _MSG_REC.unpack_from, _U64.unpack_from, Opcode.MESSAGE
+    pos, n = 0, len(records)
+    while pos + 9 <= n:
+        if records[pos] == msg:
+            length, cid, seq, t = head(records, pos + 1)
+            if cid in wanted and (lo is None or t >= lo) and (hi is None or t < hi):
+                out.append((t, cid, seq, records[pos + 9 + _MSG.size: pos + 9 + length]))
+        else:
+            length = length_of(records, pos + 1)[0]
+        pos += 9 + length
+    return out
+
+
 def read_chunk(path: str, f: BinaryIO, ref: ChunkRef) -> memoryview:
     """Records of the chunk ``ref`` (CorruptChunkError when damaged)."""
     f.seek(ref.offset)

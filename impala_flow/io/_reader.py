@@ -24,13 +24,11 @@ import heapq
 import logging
 import os
 import stat
-import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from mcap.opcode import Opcode
 
 from . import _mcapfile as mf
 from ._codec import Codec
@@ -47,9 +45,6 @@ from ._registry import CodecRegistry
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
 
 log = logging.getLogger(__name__)
-
-_MSG_REC = struct.Struct("<QHIQ")  # a message record after its opcode: length, channel, sequence, log time
-_LEN = struct.Struct("<Q")
 
 
 class Recorded(NamedTuple):
@@ -378,20 +373,7 @@ class MissionReader:
         if records is None:
             self._count_loss(ref, wanted, lo, hi)
             return []
-        out = []
-        # mf.iter_records inlined: one unpack per record (its length and, for a message, its
-        # head), a payload view only for the messages kept
-        head, length_of, msg = _MSG_REC.unpack_from, _LEN.unpack_from, Opcode.MESSAGE
-        pos, n = 0, len(records)
-        while pos + 9 <= n:
-            if records[pos] == msg:
-                length, cid, seq, t = head(records, pos + 1)
-                if cid in wanted and (lo is None or t >= lo) and (hi is None or t < hi):
-                    out.append((t, cid, seq, records[pos + 31 : pos + 9 + length]))
-            else:
-                length = length_of(records, pos + 1)[0]
-            pos += 9 + length
-        return out
+        return mf.select_messages(records, wanted, lo, hi)
 
     def _emit(self, item: tuple[int, int, int, Any], wanted: dict) -> Recorded:
         t, cid, seq, payload = item
