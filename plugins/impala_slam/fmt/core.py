@@ -334,17 +334,23 @@ def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
     return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=1)[:, :cols], axis=0, workers=1)
 
 
+def _whitened(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
+    """The normalised cross-power spectrum of eq. 1 (seed 2), times ``weight`` when given."""
+    cross = fb * np.conj(fa)
+    mag = np.abs(cross)
+    cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
+    if weight is not None:
+        cross *= weight
+    return cross
+
+
 def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
     """The phase correlation surface from two images' (first columns of) rfft2: the whitened
     cross-power spectrum, weighted, transformed back (the columns left out are zero). The
     surface over the whole spectrum to float32 rounding: numpy's complex64 product of the same
     numbers can differ in the last bit with the arrays' sizes (every registration of the
     512-cell RADIATE turns came out bit-identical; tests/slam/test_fmt_core.py)."""
-    cross = fb * np.conj(fa)
-    mag = np.abs(cross)
-    cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
-    if weight is not None:
-        cross *= weight
+    cross = _whitened(fa, fb, weight)
     if cross.shape[1] >= shape[1] // 2 + 1:
         return scipy.fft.irfft2(cross, s=shape, workers=1)
     # irfft2 = the inverse transform of the columns, then the real inverse of the rows, scaled once
@@ -549,10 +555,7 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int) -> 
     sum and sum of squares are 4 times theirs, Parseval on each of the 4 interleaved grids)
     less the 7 x 7 window's. The same figures to float rounding; on RADIATE turns at
     0.2 m cells, min_wavelength_m 0.8 m, 4x smaller inverse transforms and peak searches."""
-    cross = fb * np.conj(fa)
-    mag = np.abs(cross)
-    cross /= np.maximum(mag, 1e-12 * max(float(mag.max()), 1e-30))
-    cross *= weight
+    cross = _whitened(fa, fb, weight)
     m = n // 2
     coarse = np.zeros((m, m // 2 + 1), cross.dtype)
     coarse[:, :cross.shape[1]] = cross
