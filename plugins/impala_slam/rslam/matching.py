@@ -186,7 +186,7 @@ class _Correlator:
     forward DFT, one spectrum product and one inverse DFT whose k x k corner (k = n - m + 1,
     the valid shifts) is read: 16 ms -> 4 ms per rotation for a 601-cell template
     (``nonzeroRows`` would skip rows but leaves OpenCV's IPP path: 3-4 times slower here).
-    template. The normalisation follows OpenCV's (num / (sqrt(window energy) |T|), +-1
+    The normalisation follows OpenCV's (num / (sqrt(window energy) |T|), +-1
     between 1 and 1.125 of it, 0 beyond), so the surface equals matchTemplate's to float32
     rounding."""
 
