@@ -1,12 +1,14 @@
 """The robust fit of :func:`~.distortion.estimate_velocity`: scipy.optimize.least_squares's
 ``method="trf"`` (no bounds, exact trust-region solver, 2-point Jacobian, ``loss="cauchy"``)
 written out for a small dense problem, step for step the same arithmetic, so the results are
-the same bits (tests/slam/test_distortion_odometry.py compares the two).
+the same bits (tests/slam/test_distortion_fit.py compares the two).
 
 Not scipy.optimize.least_squares itself: its per-call machinery (argument checks, the
 VectorFunction and finite-difference wrappers) cost about 5 ms for these two or three parameters
 and a few hundred residuals, most of the odometry's time, against well under 1 ms of arithmetic.
-The helpers below follow scipy/optimize/_lsq/common.py and trf.py (scipy 1.17, BSD licence).
+The helpers below follow scipy/optimize/_lsq/common.py and trf.py (scipy 1.17), whose licence
+is BSD-3-Clause: Copyright (c) 2001-2002 Enthought, Inc. 2003, SciPy Developers. All rights
+reserved (the licence's full text is in scipy's LICENSE.txt).
 """
 
 from __future__ import annotations
@@ -72,8 +74,7 @@ def _jacobian(rows: np.ndarray, f_rows: np.ndarray) -> np.ndarray:
     jt = np.empty((n, f_rows.shape[1]))
     for i in range(n):
         jt[i] = (f_rows[i + 1] - f_rows[0]) / (rows[i + 1, i] - x0[i])
-    jac = jt.T
-    return jac.astype(jac.dtype)
+    return jt.T
 
 
 def _solve_lsq_trust_region(n, m, uf, s, v, delta, initial_alpha=None, rtol=0.01, max_iter=10):
