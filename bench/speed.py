@@ -260,6 +260,17 @@ def section_radiate_kissicp(args: argparse.Namespace) -> dict:
             "kissicp_radiate_ate_m": summary.extra.get("eval", {}).get("ate_rmse_m")}
 
 
+def _simulated(args: argparse.Namespace, graph: str, scenario: str, seconds: float, ports: dict[str, str | None],
+               turn_of: str) -> tuple[dict[str, TurnTimer], Any, int]:
+    """A simulated ``scenario`` mission of ``seconds`` through ``graph`` (text with the
+    duration, seed and report to fill in), timed; (timers, summary, turns of ``turn_of``)."""
+    text = graph % {"duration": seconds, "seed": args.seed, "report": Path(args.out) / scenario}
+    _, timers, summary, wall = run_timed(None, text, {}, ports)
+    turns = len(timers[turn_of].turns)
+    _print_split(f"{scenario}, {seconds:.0f} s simulated (seed {args.seed})", timers, args.warmup, turns, wall)
+    return timers, summary, turns
+
+
 BEYNES = """
 name: speed-beynes
 clock: {mode: replay, speed: max}
@@ -286,10 +297,7 @@ connections:
 def section_beynes(args: argparse.Namespace) -> dict:
     ports = {"mission": None, "pairer": "detections", "panoramic": "image", "speckle": "filtered", "slam": "pose",
              "eval": None}
-    text = BEYNES % {"duration": args.beynes_s, "seed": args.seed, "report": Path(args.out) / "beynes"}
-    net, timers, summary, wall = run_timed(None, text, {}, ports)
-    turns = len(timers["slam"].turns)
-    _print_split(f"Beynes, {args.beynes_s:.0f} s simulated (seed {args.seed})", timers, args.warmup, turns, wall)
+    timers, summary, turns = _simulated(args, BEYNES, "beynes", args.beynes_s, ports, "slam")
     sim_s = timers["mission"].total_s
     x_rt = summary.mission_s / sim_s if sim_s > 0 else float("inf")
     print(f"  simulator: {1e3 * sim_s / max(1, turns):.1f} ms per turn, x{x_rt:.1f} real time")
@@ -319,11 +327,7 @@ connections:
 
 def section_semi_urban(args: argparse.Namespace) -> dict:
     ports = {"mission": None, "odometry": "pose", "eval": None}
-    text = SEMI_URBAN % {"duration": args.semi_urban_s, "seed": args.seed, "report": Path(args.out) / "semi-urban"}
-    net, timers, summary, wall = run_timed(None, text, {}, ports)
-    turns = len(timers["odometry"].turns)
-    _print_split(f"semi-urban, {args.semi_urban_s:.0f} s simulated (seed {args.seed})", timers, args.warmup, turns,
-                 wall)
+    timers, summary, _ = _simulated(args, SEMI_URBAN, "semi-urban", args.semi_urban_s, ports, "odometry")
     return {"odometry_semiurban_ms_per_turn": round(timers["odometry"].median_ms(args.warmup), 2),
             "odometry_semiurban_ate_m": summary.extra.get("eval", {}).get("ate_rmse_m")}
 
@@ -348,10 +352,7 @@ connections:
 
 def section_campus(args: argparse.Namespace) -> dict:
     ports = {"mission": None, "panoramic": "image", "fmt": "pose", "eval": None}
-    text = CAMPUS % {"duration": args.campus_s, "seed": args.seed, "report": Path(args.out) / "campus"}
-    net, timers, summary, wall = run_timed(None, text, {}, ports)
-    turns = len(timers["fmt"].turns)
-    _print_split(f"campus-open, {args.campus_s:.0f} s simulated (seed {args.seed})", timers, args.warmup, turns, wall)
+    timers, summary, _ = _simulated(args, CAMPUS, "campus-open", args.campus_s, ports, "fmt")
     return {"fmt_campus_ms_per_turn": round(timers["fmt"].median_ms(args.warmup), 2),
             "panoramic_campus_ms_per_turn": round(timers["panoramic"].median_ms(args.warmup), 2),
             "fmt_campus_ate_m": summary.extra.get("eval", {}).get("ate_rmse_m")}
