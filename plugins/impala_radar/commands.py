@@ -1,4 +1,5 @@
-"""The radar plugin's subcommands: ``impala-flow simulate`` and ``impala-flow import``."""
+"""The radar plugin's subcommands: ``impala-flow simulate``, ``impala-flow import`` and
+``impala-flow navtech-server``."""
 
 from __future__ import annotations
 
@@ -213,6 +214,57 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--compression", default="zstd", choices=("zstd", "lz4", "none"))
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=_import)
+    _add_navtech_server(sub)
+
+
+def _add_navtech_server(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "navtech-server", help="emulate a Navtech radar: serve a dataset folder or a mission over TCP",
+        description="Serve recorded radar scans over Navtech's Colossus TCP protocol, as a Navtech radar "
+        "would: the configuration on connection, keep-alives to an idle client, and, once the client asks "
+        "for FFT data, one FFT message per azimuth at the recorded pace (x --speed) with the recorded device "
+        "times. A client that reconnects gets the beams of the time it comes back at (those due meanwhile are "
+        "not sent, and counted). SOURCE is a dataset folder (oxford, boreas, radiate; detected, or --format) "
+        "or an imported mission (.mcap with radar/beams). The graph side is radar.NavtechRadar "
+        "(docs/live.md). Prints the port it listens on, then, at the end (end of the recording without "
+        "--loop, or Ctrl-C), what it sent.",
+        epilog="examples:\n"
+        "  impala-flow navtech-server data/oxford-radar-robotcar-sample\n"
+        "  impala-flow navtech-server data/radiate-edinburgh-head --loop --jitter-ms 20\n"
+        "  impala-flow navtech-server mission.mcap --port 0 --drop-after 5   # a free port; cut every 5 s",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("source", help="dataset folder (oxford, boreas, radiate) or imported mission (.mcap)")
+    p.add_argument("--format", default=None, choices=tuple(DATASET_SOURCES),
+                   help="dataset format of a folder (default: detected: Navtech_Polar/ = radiate, radar/ with "
+                   "applanix/ = boreas, radar/ = oxford)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine "
+                   "only; 0.0.0.0 serves the network)")
+    p.add_argument("--port", type=int, default=6317, help="TCP port (default 6317, Navtech's; 0: a free port, "
+                   "printed)")
+    p.add_argument("--speed", type=float, default=1.0, help="pace as a multiple of real time (default 1)")
+    p.add_argument("--loop", action="store_true", help="restart the recording at its end (device times run on)")
+    p.add_argument("--jitter-ms", type=float, default=0.0, metavar="J",
+                   help="delay each send by a random 0..J ms (network jitter; the device stamps are unchanged)")
+    p.add_argument("--drop-after", type=float, default=None, metavar="S",
+                   help="cut each client's connection after S seconds (a lost link; the next connection is "
+                   "served from the time it comes at)")
+    p.add_argument("--high-precision", action="store_true",
+                   help="send 16-bit FFT data (type 31) instead of 8-bit (type 30)")
+    p.add_argument("--azimuth-offset-deg", type=float, default=0.0, metavar="DEG",
+                   help="a mission's beams: the azimuth offset its import added, removed to get the encoder "
+                   "counts back (default 0: the recorded azimuths; dataset folders are read without offset)")
+    p.add_argument("--db-per-count", type=float, default=0.5, metavar="DB",
+                   help="log scale of the samples: a beam's linear power P is sent as the count "
+                   "10 log10(P) / DB (default 0.5, Navtech's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the jitter (default 0)")
+    p.set_defaults(func=_navtech_server)
+
+
+def _navtech_server(args: argparse.Namespace) -> int:
+    from .navtech.server import serve_command
+
+    return serve_command(args)
 
 
 def _simulate(args: argparse.Namespace) -> int:

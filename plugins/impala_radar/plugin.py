@@ -1,5 +1,5 @@
-"""Entry point of the radar plugin: radar sources, front-end components, the ``simulate``
-mission source, CLI commands.
+"""Entry point of the radar plugin: radar sources (simulator, dataset readers, the live
+``NavtechRadar``), front-end components, the ``simulate`` mission source, CLI commands.
 
 Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
 component modules are imported inside the hooks, so loading the plugin stays cheap.
@@ -25,6 +25,9 @@ def impala_flow_register(registry: Any) -> None:
     registry.add_component(OxfordScans)
     registry.add_component(BoreasScans)
     registry.add_component(RadiateScans)
+    from .navtech.component import NavtechRadar
+
+    registry.add_component(NavtechRadar)
     from .ego_velocity.component import EgoVelocity
     from .extractor.component import PeakExtractor
     from .pairer.component import FuzzyPairer
