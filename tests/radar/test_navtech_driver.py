@@ -116,7 +116,7 @@ def test_oxford_live_equals_the_import():
     assert_same_beams(times, beams, ref, exact_azimuth=True)
     s = radar.summary()
     assert s["beams"] > len(ref) and s["reconnects"] == 0 and s["beams_missing"] == 0
-    assert s["clock"]["observations"] == s["beams"]
+    assert 0 < s["clock"]["observations"] <= s["beams"]  # one per read of the socket
 
 
 def test_radiate_live_equals_the_import_16_bit():
@@ -136,7 +136,7 @@ def test_network_jitter_20_ms_keeps_the_device_spacing():
         times, beams, radar, _ = live(server, turns(ref), azimuth_offset_deg=-2.3)
     assert_same_beams(times, beams, ref, exact_azimuth=False)
     clock = radar.summary()["clock"]
-    assert clock["steps"] == 0 and clock["observations"] == radar.summary()["beams"]
+    assert clock["steps"] == 0 and clock["observations"] > 0
 
 
 def test_synthetic_8_bit_every_count(tmp_path):

@@ -220,26 +220,38 @@ class NavtechRadar(RadarDriver):
                 continue
             if not data:
                 raise _Dead("connection closed by the radar")
+            host_ns = self.now_ns()
             last_rx = time.monotonic()
+            items: list[Any] = []
             for m in dec.feed(data):
                 if m.type in (MessageType.FFT_DATA, MessageType.HIGH_PRECISION_FFT_DATA):
-                    if cfg is None:
-                        self.counts["beams_dropped"] += 1  # data before any configuration: no geometry
-                        continue
-                    fft = FftData.decode(m.payload, m.type == MessageType.HIGH_PRECISION_FFT_DATA)
-                    item = self._beam(fft, cfg, self.now_ns())
-                    if item is not None:
-                        yield item
+                    items.append(FftData.decode(m.payload, m.type == MessageType.HIGH_PRECISION_FFT_DATA))
                 elif m.type == MessageType.CONFIGURATION:
-                    new = Configuration.decode(m.payload)
-                    first = cfg is None
-                    cfg = self._configure(new)
-                    if first:
-                        sock.sendall(encode_message(MessageType.START_FFT_DATA))
+                    items.append(Configuration.decode(m.payload))
                 elif m.type == MessageType.KEEP_ALIVE:
                     self.counts["keepalives"] += 1
                 else:
                     self.unknown_types[m.type] += 1
+            # one clock observation per read: the newest beam of the bytes received at host_ns (its
+            # delay is the smallest of them); every beam is then mapped on that line
+            observed = False
+            for it in items:
+                if isinstance(it, Configuration):
+                    first = cfg is None
+                    cfg = self._configure(it)
+                    if first:
+                        sock.sendall(encode_message(MessageType.START_FFT_DATA))
+                    continue
+                if cfg is None:
+                    self.counts["beams_dropped"] += 1  # data before any configuration: no geometry
+                    continue
+                if not observed:
+                    newest = max(f.device_ns for f in items if isinstance(f, FftData))
+                    self.clock.update(newest, host_ns)
+                    observed = True
+                item = self._beam(it, cfg)
+                if item is not None:
+                    yield item
             if dec.error is not None:
                 raise dec.error
 
@@ -266,7 +278,7 @@ class NavtechRadar(RadarDriver):
                 beams_per_turn=new.azimuth_samples, rotation_hz=new.rotation_hz)
         return self.device_config  # type: ignore[return-value]
 
-    def _beam(self, fft: FftData, cfg: Configuration, host_ns: int) -> tuple[int, str, Any] | None:
+    def _beam(self, fft: FftData, cfg: Configuration) -> tuple[int, str, Any] | None:
         values = fft.values()
         if fft.azimuth >= cfg.encoder_size or values.size != cfg.range_in_bins:
             self.counts["beams_dropped"] += 1
@@ -279,7 +291,7 @@ class NavtechRadar(RadarDriver):
         index = index_of_count(fft.azimuth, n, cfg.encoder_size)
         device_ns = fft.device_ns
         turn = self._turn(index, n, device_ns, cfg.rotation_hz)
-        t = int(self.clock.update(device_ns, host_ns))
+        t = int(self.clock.to_mission_ns(device_ns))
         if t < self._last_t:  # the estimate moved back: never yield out of order
             self.counts["stamps_held"] += 1
             t = self._last_t

@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -28,12 +29,20 @@ __all__ = ["beam_power", "azimuth_of_count", "count_of_azimuth", "counts_of_powe
 _TWO_PI = 2.0 * np.pi
 
 
+@functools.lru_cache(maxsize=8)
+def _table(db_per_count: float) -> np.ndarray:
+    """The 256 powers of the 8-bit counts, each computed by the readers' own function."""
+    table = counts_to_power(np.arange(256, dtype=np.float64) / 255.0, db_per_count)
+    table.flags.writeable = False
+    return table
+
+
 def beam_power(values: np.ndarray, db_per_count: float, high_precision: bool) -> np.ndarray:
     """Linear power (float32) of 8-bit counts or 16-bit values (see the module doc)."""
     if high_precision:
         db = np.asarray(values, np.float64) / 256.0 * db_per_count
         return np.power(10.0, db / 10.0).astype(np.float32)
-    return counts_to_power(np.asarray(values, np.float64) / 255.0, db_per_count)
+    return _table(float(db_per_count))[np.asarray(values, np.uint8)]
 
 
 def counts_of_power(power: np.ndarray, db_per_count: float, high_precision: bool) -> tuple[np.ndarray, int]:
