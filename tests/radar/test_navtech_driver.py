@@ -19,6 +19,8 @@ import pytest
 
 from impala_flow._network import Network
 from impala_flow._realtime import RealTimeExecutor
+from impala_flow.io import CodecRegistry, MissionReader
+from impala_flow.plugins import load_registry
 from impala_flow.testing import CollectingSink, connect
 from impala_radar.datasets.component import DATASET_SOURCES
 from impala_radar.navtech.component import NavtechRadar
@@ -137,6 +139,21 @@ def test_network_jitter_20_ms_keeps_the_device_spacing():
     assert_same_beams(times, beams, ref, exact_azimuth=False)
     clock = radar.summary()["clock"]
     assert clock["steps"] == 0 and clock["observations"] > 0
+
+
+def test_an_imported_mission_served_gives_its_beams(tmp_path):
+    """``impala-flow import`` then the emulator on the .mcap: the recorded beams come back."""
+    folder = need(FOG)
+    mission = tmp_path / "fog.mcap"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    subprocess.run([sys.executable, "-m", "impala_flow", "import", "radiate", str(folder), "-o", str(mission),
+                    "--no-progress"], check=True, capture_output=True, env=env, timeout=300)
+    with MissionReader(mission, CodecRegistry.from_plugins(load_registry())) as r:
+        ref = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
+    # the import added RADIATE's -2.3 deg: the emulator takes it off, the driver puts it back
+    with NavtechServer(mission, port=0, loop=True, azimuth_offset_deg=-2.3) as server:
+        times, beams, _, _ = live(server, turns(ref), azimuth_offset_deg=-2.3)
+    assert_same_beams(times, beams, ref, exact_azimuth=False)
 
 
 def test_synthetic_8_bit_every_count(tmp_path):
