@@ -37,11 +37,19 @@ def _table(db_per_count: float) -> np.ndarray:
     return table
 
 
+@functools.lru_cache(maxsize=2)
+def _table16(db_per_count: float) -> np.ndarray:
+    """The 65536 powers of the 16-bit values (256 KiB): ``10^(v / 256 x db / 10)``."""
+    db = np.arange(65536, dtype=np.float64) / 256.0 * db_per_count
+    table = np.power(10.0, db / 10.0).astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
 def beam_power(values: np.ndarray, db_per_count: float, high_precision: bool) -> np.ndarray:
     """Linear power (float32) of 8-bit counts or 16-bit values (see the module doc)."""
     if high_precision:
-        db = np.asarray(values, np.float64) / 256.0 * db_per_count
-        return np.power(10.0, db / 10.0).astype(np.float32)
+        return _table16(float(db_per_count))[np.asarray(values, np.uint16)]
     return _table(float(db_per_count))[np.asarray(values, np.uint8)]
 
 
