@@ -5,7 +5,8 @@ Connects to ``host:port``, reads the configuration into a :class:`~impala_msgs.R
 them), asks for FFT data and yields one :class:`~impala_msgs.RadarBeam` per azimuth (power,
 azimuth and index as :mod:`.convert` says; ``turn`` counts the encoder's wraps from 0, across
 reconnections by the device time elapsed, so it stays the scan number of a recording served
-from its start). Each beam is stamped with its device time mapped to mission time by
+from its start; within a connection by the encoder alone, so a device clock step changes no
+turn number). Each beam is stamped with its device time mapped to mission time by
 :class:`impala_flow.ClockSync` (the minimum-delay line of the (device time, receive time) pairs:
 robust to network delay and jitter, tracks drift, detects a device clock step): the stamps keep
 the device's spacing, on the mission clock every sensor of the graph shares. The mapping (offset,
@@ -304,9 +305,11 @@ class NavtechRadar(RadarDriver):
         return t, "beams", beam
 
     def _turn(self, index: int, n: int, device_ns: int, rotation_hz: float) -> int:
-        """The beam's turn: the encoder wrapped (index not after the last one's) -> next turn;
-        after a reconnection, or a jump of more than half a turn of device time, the turns
-        elapsed by the device time (the position predicted from the last beam, rounded)."""
+        """The beam's turn. Within a connection the encoder tells (index not after the last
+        one's: the next turn): TCP loses nothing, and a device clock step changes no turn number
+        (as the readers number a recording's scans, a scan missing from a log is no turn). After
+        a reconnection, the turns elapsed by the device time (the position predicted from the
+        last beam, rounded)."""
         last = self._last
         if last is None:
             turn = 0
@@ -315,7 +318,7 @@ class NavtechRadar(RadarDriver):
             last_turn, last_index, last_ns = last
             wrap = 1 if index <= last_index else 0
             dt_s = (device_ns - last_ns) / 1e9
-            if self._gap or dt_s * rotation_hz > 0.5:
+            if self._gap:
                 predicted = last_turn + last_index / n + dt_s * rotation_hz - index / n
                 turn = max(last_turn + wrap, int(math.floor(predicted + 0.5)))
             else:
