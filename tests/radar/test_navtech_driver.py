@@ -261,3 +261,21 @@ def test_the_emulator_speaks_the_protocol(tmp_path):
             assert int.from_bytes(payload[6:10], "little") == t_us // 1_000_000
             assert int.from_bytes(payload[10:14], "little") == (t_us % 1_000_000) * 1000
             assert payload[14:] == img[k, 11:].tobytes()  # the PNG's pixels: the radar's counts
+
+
+@pytest.mark.parametrize("args, line", [
+    (["/nonexistent"], "/nonexistent: no such file or folder"),
+    (["{tmp}"], "no Navtech_Polar/ (radiate) nor radar/ (oxford, boreas) inside"),
+    (["{synthetic}", "--speed", "0"], "speed 0.0: expected a finite value > 0"),
+    (["{synthetic}", "--port", "70000"], "port 70000: expected 0..65535"),
+    (["{synthetic}", "--jitter-ms", "-1"], "jitter -1.0 ms: expected 0..10000 ms"),
+])
+def test_the_command_refuses_bad_input_in_one_line(tmp_path, capsys, args, line):
+    from impala_flow.cli import main
+
+    navtech_folder(tmp_path / "ox", n_scans=1, n_bins=8)
+    argv = [a.format(tmp=tmp_path / "empty", synthetic=tmp_path / "ox") for a in args]
+    (tmp_path / "empty").mkdir()
+    assert main(["navtech-server", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert line in err and "\n" not in err

@@ -150,7 +150,6 @@ class NavtechRadar(RadarDriver):
 
     # --- the stream ----------------------------------------------------------------------------
     def generate(self) -> Iterator[tuple[int, str, Any]]:
-        self._stop.clear()
         failures = 0
         where = f"{self.host}:{self.port}"
         while not self._stop.is_set():

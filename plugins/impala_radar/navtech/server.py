@@ -166,6 +166,8 @@ class NavtechServer:
             raise ServerError(f"jitter {jitter_ms} ms: expected 0..10000 ms")
         if drop_after_s is not None and not drop_after_s > 0:
             raise ServerError(f"drop after {drop_after_s} s: expected a value > 0")
+        if not 0 <= port <= 0xFFFF:
+            raise ServerError(f"port {port}: expected 0..65535 (0: a free port)")
         if not 1 <= encoder_size <= 0xFFFF:
             raise ServerError(f"encoder size {encoder_size}: expected 1..65535")
         self.recording = open_recording(source, fmt, azimuth_offset_deg)
