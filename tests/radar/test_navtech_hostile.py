@@ -239,7 +239,9 @@ def test_a_device_clock_step_is_detected_and_changes_no_turn():
 
     radar = FakeRadar(script)
     try:
-        beams, err, drv = drive(radar.port, reconnect_attempts=0)
+        # forward steps are looked for once the estimate has settled (clock_confirm_reads observations,
+        # one per read: here one per beam, 48 before the step)
+        beams, err, drv = drive(radar.port, reconnect_attempts=0, clock_confirm_reads=16)
     finally:
         radar.close()
     s = drv.summary()

@@ -98,10 +98,12 @@ class NavtechRadar(RadarDriver):
                            doc="device time the clock estimator fits offset and drift over")
     clock_step_ms = Param(float, default=50.0, gt=0.0, le=3_600_000.0,
                           doc="a jump of the device clock larger than this is a step (detected, counted, re-estimated)")
-    clock_confirm_s = Param(float, default=1.0, gt=0.0, le=60.0,
-                            doc="beams received later than the clock line by more than clock_step_ms for this long "
-                            "in a row are a backward step of the device clock (shorter: a stall of the host or "
-                            "the network, not a step)")
+    clock_confirm_reads = Param(int, default=1000, ge=1, le=1_000_000,
+                                doc="clock observations (one per socket read: its newest beam) in a row later than "
+                                "the clock line by more than clock_step_ms that make a backward step of the device "
+                                "clock (fewer: a stall of the host or the network; a step back larger than "
+                                "clock_step_ms between two beams is found at once); forward steps are found "
+                                "after this many observations (the estimate settled)")
 
     def __init__(self, name: str | None = None, **params: Any) -> None:
         super().__init__(name, **params)
@@ -120,7 +122,7 @@ class NavtechRadar(RadarDriver):
     # --- lifecycle ---------------------------------------------------------------------------
     def start(self) -> None:
         self._stop.clear()
-        self.clock = None  # made at the first configuration (its confirmation count is in beams)
+        self.clock = None  # made at the first configuration
 
     def stop(self) -> None:
         self._stop.set()
@@ -269,9 +271,8 @@ class NavtechRadar(RadarDriver):
                                "the beams sent so far have the old geometry; restart the graph")
         if old is None:
             self.device_config = new
-            beams_per_s = new.azimuth_samples * new.rotation_hz
             self.clock = ClockSync(window_s=self.clock_window_s, step_threshold_ns=int(self.clock_step_ms * 1e6),
-                                   confirm_count=max(8, int(self.clock_confirm_s * beams_per_s)))
+                                   confirm_count=self.clock_confirm_reads)
             self.config = navtech_config(
                 self.sensor_name, new.range_in_bins, new.range_per_bin_m,
                 range_offset_m=new.range_offset_m + self.range_offset_bins * new.range_per_bin_m,
