@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import socket
 import subprocess
 import sys
 import threading
@@ -16,9 +17,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from impala_flow._network import Network
 from impala_flow._realtime import RealTimeExecutor
+from impala_flow.io import CodecRegistry, MissionReader
+from impala_flow.plugins import load_registry
 from impala_flow.testing import CollectingSink, connect
 from impala_radar.datasets.component import DATASET_SOURCES
 from impala_radar.navtech.component import NavtechRadar
@@ -139,6 +143,21 @@ def test_network_jitter_20_ms_keeps_the_device_spacing():
     assert clock["steps"] == 0 and clock["observations"] > 0
 
 
+def test_an_imported_mission_served_gives_its_beams(tmp_path):
+    """``impala-flow import`` then the emulator on the .mcap: the recorded beams come back."""
+    folder = need(FOG)
+    mission = tmp_path / "fog.mcap"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    subprocess.run([sys.executable, "-m", "impala_flow", "import", "radiate", str(folder), "-o", str(mission),
+                    "--no-progress"], check=True, capture_output=True, env=env, timeout=300)
+    with MissionReader(mission, CodecRegistry.from_plugins(load_registry())) as r:
+        ref = [(m.t_ns, m.data) for m in r.messages(["radar/beams"])]
+    # the import added RADIATE's -2.3 deg: the emulator takes it off, the driver puts it back
+    with NavtechServer(mission, port=0, loop=True, azimuth_offset_deg=-2.3) as server:
+        times, beams, _, _ = live(server, turns(ref), azimuth_offset_deg=-2.3)
+    assert_same_beams(times, beams, ref, exact_azimuth=False)
+
+
 def test_synthetic_8_bit_every_count(tmp_path):
     """Every count 0..255 through the 8-bit path gives the import's power (synthetic scans)."""
     navtech_folder(tmp_path / "ox", n_scans=3, n_bins=256)
@@ -202,3 +221,61 @@ def test_the_command_serves_and_stops_cleanly():
             proc.wait()
     assert proc.returncode == 0, err
     assert re.search(r"sent:\s+\d+ FFT messages", out) and "interrupted" in err
+
+
+def test_the_emulator_speaks_the_protocol(tmp_path):
+    """Byte level, a plain socket as the client: configuration on connection, keep-alives while
+    idle, then FFT data with the recorded encoder counts, device times and counts."""
+    paths = navtech_folder(tmp_path / "ox", n_scans=2, n_bins=16)
+    img = np.asarray(Image.open(paths[0]))  # row k: time (us), encoder count, flag, 16 counts
+    with NavtechServer(tmp_path / "ox", port=0, keepalive_s=0.3) as server, \
+            socket.create_connection(("127.0.0.1", server.port), timeout=10) as sock:
+        def read(n: int) -> bytes:
+            out = b""
+            while len(out) < n:
+                chunk = sock.recv(n - len(out))
+                assert chunk, "the emulator closed the connection"
+                out += chunk
+            return out
+
+        def message() -> tuple[int, bytes]:
+            head = read(22)
+            assert head[:16] == bytes.fromhex("00 01 03 03 07 07 0F 0F 1F 1F 3F 3F 7F 7F FE FE") and head[16] == 1
+            return head[17], read(int.from_bytes(head[18:22], "big"))
+
+        t, payload = message()
+        assert t == 10
+        # 400 azimuths, 438 x 0.1 mm (4.38 cm), 16 bins, 5600 counts, rotation in mHz: 1 / (400 x 625 us) = 4 Hz
+        assert [int.from_bytes(payload[i:i + 2], "big") for i in range(0, 12, 2)] == [400, 438, 16, 5600, 4000, 1600]
+        assert [message()[0] for _ in range(2)] == [1, 1]  # keep-alives to an idle client
+        sock.sendall(bytes.fromhex("00 01 03 03 07 07 0F 0F 1F 1F 3F 3F 7F 7F FE FE") + bytes([1, 21, 0, 0, 0, 0]))
+        t, payload = message()
+        while t == 1:  # a keep-alive sent before the request arrived
+            t, payload = message()
+        for k in range(3):
+            if k:
+                t, payload = message()
+            assert t == 30 and int.from_bytes(payload[:2], "big") == 14
+            assert int.from_bytes(payload[4:6], "big") == 7 + 14 * k  # the encoder count of row k
+            t_us = 1_700_000_000_000_000 + 625 * k
+            assert int.from_bytes(payload[6:10], "little") == t_us // 1_000_000
+            assert int.from_bytes(payload[10:14], "little") == (t_us % 1_000_000) * 1000
+            assert payload[14:] == img[k, 11:].tobytes()  # the PNG's pixels: the radar's counts
+
+
+@pytest.mark.parametrize("args, line", [
+    (["/nonexistent"], "/nonexistent: no such file or folder"),
+    (["{tmp}"], "no Navtech_Polar/ (radiate) nor radar/ (oxford, boreas) inside"),
+    (["{synthetic}", "--speed", "0"], "speed 0.0: expected a finite value > 0"),
+    (["{synthetic}", "--port", "70000"], "port 70000: expected 0..65535"),
+    (["{synthetic}", "--jitter-ms", "-1"], "jitter -1.0 ms: expected 0..10000 ms"),
+])
+def test_the_command_refuses_bad_input_in_one_line(tmp_path, capsys, args, line):
+    from impala_flow.cli import main
+
+    navtech_folder(tmp_path / "ox", n_scans=1, n_bins=8)
+    argv = [a.format(tmp=tmp_path / "empty", synthetic=tmp_path / "ox") for a in args]
+    (tmp_path / "empty").mkdir()
+    assert main(["navtech-server", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert line in err and "\n" not in err

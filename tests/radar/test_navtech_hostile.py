@@ -222,3 +222,30 @@ def test_refused_connection_gives_up_after_the_attempts(caplog):
         _, err, drv = drive(port, reconnect_attempts=3)
     assert isinstance(err, NavtechError) and f"cannot connect to the radar at 127.0.0.1:{port}" in str(err)
     assert len(warnings(caplog)) == 3 and drv.summary()["connections"] == 0
+
+
+def test_a_device_clock_step_is_detected_and_changes_no_turn():
+    """The radar's clock jumps 2 s forward mid-stream, the azimuths running on: the clock
+    estimator reports a step of that size; no beam is taken for lost, the turns count on."""
+    def script(conn: socket.socket, n: int) -> None:
+        conn.settimeout(5)
+        conn.sendall(config())
+        conn.recv(64)  # start FFT data
+        t0 = time.monotonic()
+        for k in range(80):  # 8 azimuths per turn at 4 Hz: one every 31.25 ms, paced
+            time.sleep(max(0.0, t0 + k / 32 - time.monotonic()))
+            conn.sendall(fft(k, t0_s=1_700_000_000 + (2 if k >= 48 else 0)))
+        time.sleep(0.3)
+
+    radar = FakeRadar(script)
+    try:
+        # forward steps are looked for once the estimate has settled (clock_confirm_reads observations,
+        # one per read: here one per beam, 48 before the step)
+        beams, err, drv = drive(radar.port, reconnect_attempts=0, clock_confirm_reads=16)
+    finally:
+        radar.close()
+    s = drv.summary()
+    assert [(b.turn, b.index) for b in beams] == [(k // 8, k % 8) for k in range(80)]
+    assert s["beams_missing"] == 0 and s["turns_lost"] == 0 and s["clock"]["steps"] == 1
+    step = s["clock"]["step_events"][0]
+    assert abs(step["size_ns"] - 2_000_000_000) < 100_000_000

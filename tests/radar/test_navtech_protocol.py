@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from impala_radar.datasets.common import counts_to_power
+from impala_radar.navtech.convert import beam_power, counts_of_power
 from impala_radar.navtech.protocol import (
     HEADER_BYTES,
     MAX_PAYLOAD_BYTES,
@@ -132,3 +134,19 @@ def test_decoder_bounds_the_payload_before_buffering_it():
 def test_decoder_refuses_another_version():
     with pytest.raises(ProtocolError, match="version 2, expected 1"):
         StreamDecoder().feed(sdk_header(1, 0, version=2))
+
+
+def test_samples_and_powers_round_trip_exactly():
+    """The emulator's inverse gives every 8-bit count and 16-bit value back from the power the
+    driver makes of it; the 8-bit power is the readers' (count / 255 through counts_to_power)."""
+    for high_precision, top in ((False, 255), (True, 65535)):
+        v = np.arange(top + 1)
+        p = beam_power(v, 0.5, high_precision)
+        back, clipped = counts_of_power(p, 0.5, high_precision)
+        assert np.array_equal(back, v) and clipped == 0
+    assert np.array_equal(beam_power(np.arange(256), 0.5, False),
+                          counts_to_power(np.arange(256) / 255.0, 0.5))
+    # 16-bit value 256 c is the 8-bit count c
+    assert np.array_equal(beam_power(np.arange(256) * 256, 0.5, True), beam_power(np.arange(256), 0.5, False))
+    back, clipped = counts_of_power(np.array([0.5, np.nan, np.inf, 1.0], np.float32), 0.5, False)
+    assert back.tolist() == [0, 0, 255, 0] and clipped == 3

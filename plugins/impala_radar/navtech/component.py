@@ -5,7 +5,8 @@ Connects to ``host:port``, reads the configuration into a :class:`~impala_msgs.R
 them), asks for FFT data and yields one :class:`~impala_msgs.RadarBeam` per azimuth (power,
 azimuth and index as :mod:`.convert` says; ``turn`` counts the encoder's wraps from 0, across
 reconnections by the device time elapsed, so it stays the scan number of a recording served
-from its start). Each beam is stamped with its device time mapped to mission time by
+from its start; within a connection by the encoder alone, so a device clock step changes no
+turn number). Each beam is stamped with its device time mapped to mission time by
 :class:`impala_flow.ClockSync` (the minimum-delay line of the (device time, receive time) pairs:
 robust to network delay and jitter, tracks drift, detects a device clock step): the stamps keep
 the device's spacing, on the mission clock every sensor of the graph shares. The mapping (offset,
@@ -97,10 +98,12 @@ class NavtechRadar(RadarDriver):
                            doc="device time the clock estimator fits offset and drift over")
     clock_step_ms = Param(float, default=50.0, gt=0.0, le=3_600_000.0,
                           doc="a jump of the device clock larger than this is a step (detected, counted, re-estimated)")
-    clock_confirm_s = Param(float, default=1.0, gt=0.0, le=60.0,
-                            doc="beams received later than the clock line by more than clock_step_ms for this long "
-                            "in a row are a backward step of the device clock (shorter: a stall of the host or "
-                            "the network, not a step)")
+    clock_confirm_reads = Param(int, default=1000, ge=1, le=1_000_000,
+                                doc="clock observations (one per socket read: its newest beam) in a row later than "
+                                "the clock line by more than clock_step_ms that make a backward step of the device "
+                                "clock (fewer: a stall of the host or the network; a step back larger than "
+                                "clock_step_ms between two beams is found at once); forward steps are found "
+                                "after this many observations (the estimate settled)")
 
     def __init__(self, name: str | None = None, **params: Any) -> None:
         super().__init__(name, **params)
@@ -119,7 +122,7 @@ class NavtechRadar(RadarDriver):
     # --- lifecycle ---------------------------------------------------------------------------
     def start(self) -> None:
         self._stop.clear()
-        self.clock = None  # made at the first configuration (its confirmation count is in beams)
+        self.clock = None  # made at the first configuration
 
     def stop(self) -> None:
         self._stop.set()
@@ -149,7 +152,6 @@ class NavtechRadar(RadarDriver):
 
     # --- the stream ----------------------------------------------------------------------------
     def generate(self) -> Iterator[tuple[int, str, Any]]:
-        self._stop.clear()
         failures = 0
         where = f"{self.host}:{self.port}"
         while not self._stop.is_set():
@@ -269,9 +271,8 @@ class NavtechRadar(RadarDriver):
                                "the beams sent so far have the old geometry; restart the graph")
         if old is None:
             self.device_config = new
-            beams_per_s = new.azimuth_samples * new.rotation_hz
             self.clock = ClockSync(window_s=self.clock_window_s, step_threshold_ns=int(self.clock_step_ms * 1e6),
-                                   confirm_count=max(8, int(self.clock_confirm_s * beams_per_s)))
+                                   confirm_count=self.clock_confirm_reads)
             self.config = navtech_config(
                 self.sensor_name, new.range_in_bins, new.range_per_bin_m,
                 range_offset_m=new.range_offset_m + self.range_offset_bins * new.range_per_bin_m,
@@ -304,9 +305,11 @@ class NavtechRadar(RadarDriver):
         return t, "beams", beam
 
     def _turn(self, index: int, n: int, device_ns: int, rotation_hz: float) -> int:
-        """The beam's turn: the encoder wrapped (index not after the last one's) -> next turn;
-        after a reconnection, or a jump of more than half a turn of device time, the turns
-        elapsed by the device time (the position predicted from the last beam, rounded)."""
+        """The beam's turn. Within a connection the encoder tells (index not after the last
+        one's: the next turn): TCP loses nothing, and a device clock step changes no turn number
+        (as the readers number a recording's scans, a scan missing from a log is no turn). After
+        a reconnection, the turns elapsed by the device time (the position predicted from the
+        last beam, rounded)."""
         last = self._last
         if last is None:
             turn = 0
@@ -315,7 +318,7 @@ class NavtechRadar(RadarDriver):
             last_turn, last_index, last_ns = last
             wrap = 1 if index <= last_index else 0
             dt_s = (device_ns - last_ns) / 1e9
-            if self._gap or dt_s * rotation_hz > 0.5:
+            if self._gap:
                 predicted = last_turn + last_index / n + dt_s * rotation_hz - index / n
                 turn = max(last_turn + wrap, int(math.floor(predicted + 0.5)))
             else:

@@ -37,27 +37,37 @@ def _table(db_per_count: float) -> np.ndarray:
     return table
 
 
+@functools.lru_cache(maxsize=2)
+def _table16(db_per_count: float) -> np.ndarray:
+    """The 65536 powers of the 16-bit values (256 KiB): ``10^(v / 256 x db / 10)``."""
+    db = np.arange(65536, dtype=np.float64) / 256.0 * db_per_count
+    table = np.power(10.0, db / 10.0).astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
 def beam_power(values: np.ndarray, db_per_count: float, high_precision: bool) -> np.ndarray:
     """Linear power (float32) of 8-bit counts or 16-bit values (see the module doc)."""
     if high_precision:
-        db = np.asarray(values, np.float64) / 256.0 * db_per_count
-        return np.power(10.0, db / 10.0).astype(np.float32)
+        return _table16(float(db_per_count))[np.asarray(values, np.uint16)]
     return _table(float(db_per_count))[np.asarray(values, np.uint8)]
 
 
 def counts_of_power(power: np.ndarray, db_per_count: float, high_precision: bool) -> tuple[np.ndarray, int]:
-    """The samples that give ``power`` back (the emulator's inverse of :func:`beam_power`),
-    rounded to the nearest count, and how many were clipped to the sample range (a power below
-    1 or beyond the top count: never from a Navtech scan)."""
-    top = 0xFFFF if high_precision else 0xFF
-    scale = 256.0 if high_precision else 1.0
-    p = np.asarray(power, np.float64)
+    """The samples that give ``power`` back (the emulator's inverse of :func:`beam_power`):
+    ``rint(10 log10(P) / db_per_count)`` (x 256 for 16-bit), exact for every count and value
+    (tests/radar/test_navtech_protocol.py), and how many were clipped to the sample range (a
+    power below 1 or beyond the top count, or not finite: never from a Navtech scan)."""
+    p = np.asarray(power, dtype=np.float32)
+    top = 65535.0 if high_precision else 255.0
+    scale = np.float32((2560.0 if high_precision else 10.0) / db_per_count)
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = np.rint(10.0 * np.log10(p) / db_per_count * scale)
-    bad = ~np.isfinite(v) | (v < 0) | (v > top)
-    v = np.where(np.isnan(v), 0.0, v)
-    out = np.clip(v, 0, top).astype(np.uint16 if high_precision else np.uint8)
-    return out, int(np.count_nonzero(bad))
+        v = np.rint(np.log10(p) * scale)
+    if p.size and 0.0 <= v.min() and v.max() <= top:  # (a NaN fails both)
+        return v.astype(np.uint16 if high_precision else np.uint8), 0
+    bad = ~((v >= 0.0) & (v <= top))
+    v = np.clip(np.nan_to_num(v, nan=0.0, posinf=top, neginf=0.0), 0.0, top)
+    return v.astype(np.uint16 if high_precision else np.uint8), int(np.count_nonzero(bad))
 
 
 def azimuth_of_count(count: int, encoder_size: int, azimuth_offset_deg: float) -> float:

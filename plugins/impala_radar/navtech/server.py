@@ -80,7 +80,7 @@ def configuration_of(config: impala_msgs.RadarConfig, encoder_size: int = ENCODE
         encoder_size=int(encoder_size), rotation_speed_mhz=int(round(config.rotation_hz * 1000.0)),
         packet_rate=int(round(config.beams_per_turn * config.rotation_hz)),
         range_gain=rpb / (bin_size / 10_000.0),
-        range_offset_m=round(float(config.range_offset_m) - 0.5 * rpb, 6))  # to the micrometre
+        range_offset_m=round(float(config.range_offset_m) - 0.5 * rpb, 6) + 0.0)  # to the um, no -0
 
 
 class _Recording:
@@ -132,8 +132,8 @@ def open_recording(source: str | Path, fmt: str | None = None, azimuth_offset_de
 
         try:
             with reader() as r:
-                if "radar/beams" not in r.topics():
-                    raise ServerError(f"{path}: no radar/beams topic (topics: {', '.join(r.topics()) or 'none'})")
+                if "radar/beams" not in r.topics:
+                    raise ServerError(f"{path}: no radar/beams topic (topics: {', '.join(r.topics) or 'none'})")
                 first = next(iter(r.messages(["radar/beams"])), None)
         except RecordingError as e:
             raise ServerError(str(e)) from None
@@ -166,6 +166,8 @@ class NavtechServer:
             raise ServerError(f"jitter {jitter_ms} ms: expected 0..10000 ms")
         if drop_after_s is not None and not drop_after_s > 0:
             raise ServerError(f"drop after {drop_after_s} s: expected a value > 0")
+        if not 0 <= port <= 0xFFFF:
+            raise ServerError(f"port {port}: expected 0..65535 (0: a free port)")
         if not 1 <= encoder_size <= 0xFFFF:
             raise ServerError(f"encoder size {encoder_size}: expected 1..65535")
         self.recording = open_recording(source, fmt, azimuth_offset_deg)
