@@ -2,7 +2,8 @@
 
 The public API. A plugin imports only these modules (a contract in pyproject.toml checks it):
 
-- ``impala_flow``: components, ports, parameters, samples, networks, executors, clocks, the
+- ``impala_flow``: components, ports, parameters, samples, networks, executors, clocks (and ``ClockSync``, a
+  device clock mapped to mission time), the
   session (which also checks a graph without running it: ``Session.problems``,
   ``Session.graph_files``), errors, located YAML for a plugin's own files, the
   ``closest``/``did_you_mean`` hints of every one-line error;
@@ -17,6 +18,7 @@ radar: the radar chain lives in plugins registered through the ``impala_flow`` e
 """
 
 from ._clock import FakeClock, MissionClock, ReplayClock
+from ._clocksync import ClockSync
 from ._component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
 from ._network import Connection, CycleError, Network
 from ._offline import OfflineExecutor, run_offline
@@ -40,7 +42,7 @@ PUBLIC_MODULES = (
 __all__ = [
     "Sample", "Component", "Source", "Input", "Output", "Param", "Periodic", "REQUIRED",
     "ParamError", "Network", "Connection", "CycleError", "OfflineExecutor", "run_offline",
-    "ReplayClock", "MissionClock", "FakeClock", "RunSummary", "ComponentError",
+    "ReplayClock", "MissionClock", "FakeClock", "ClockSync", "RunSummary", "ComponentError",
     "InputPort", "OutputPort", "EmptyInput", "OutOfHistory", "RealTimeExecutor", "Session", "GraphError",
     "YamlError", "load_yaml", "location", "output_clash", "GraphSpec", "closest", "did_you_mean",
     "PUBLIC_MODULES", "__version__",
