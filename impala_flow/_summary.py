@@ -50,7 +50,9 @@ _KINDS = {"dropped_maxbytes": "dropped (the input held its maxbytes)"}
 
 
 def _ms(v: float) -> str:
-    """A duration given in ms, printed with 3 significant digits in ms or us."""
+    """A duration given in ms, printed with 3 significant digits in us, ms or s."""
+    if v >= 999.5:
+        return f"{v / 1000:.3g} s"
     return f"{v:.3g} ms" if v >= 1 else f"{v * 1000:.3g} us"
 
 
