@@ -450,3 +450,24 @@ def test_graph_input_bounds_are_checked_and_located() -> None:
     assert any("unknown key 'size' in component 'slam', input 'image'" in m for m in msgs), msgs
     assert any("inputs: no input 'imgae' (did you mean 'image'?)" in m for m in msgs), msgs
     assert all(m.startswith("g.yaml:") for m in msgs), msgs
+
+
+def test_an_includer_refines_an_included_components_input_bounds(tmp_path) -> None:
+    (tmp_path / "base.yaml").write_text(textwrap.dedent("""
+        components:
+          src: {type: t.TurnImages}
+          slam: {type: t.SlowSlam, inputs: {image: {maxsize: 4}}}
+        connections:
+          - src.out -> slam.image
+    """))
+    (tmp_path / "live.yaml").write_text(textwrap.dedent("""
+        include: base.yaml
+        clock: {mode: realtime}
+        components:
+          slam: {inputs: {image: {overflow: drop_oldest}}}
+    """))
+    session = Session(extra_plugins={"t": plugin_of(TurnImages, SlowSlam)}, entrypoints=False)
+    port = session.build(session.load(tmp_path / "live.yaml")).components["slam"].inputs["image"]
+    assert (port.maxsize, port.overflow) == (4, "drop_oldest")
+    _, problems = session.problems("g.yaml", text="components:\n  slam: {type: t.SlowSlam, inputs: [image]}\n")
+    assert any("g.yaml:2:" in str(p) and "inputs must be a mapping" in str(p) for p in problems), problems
