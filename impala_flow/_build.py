@@ -22,6 +22,11 @@ def build(spec: GraphSpec, registry: Registry) -> Network:
         cls = registry.components[c.type]
         comp = cls(name=c.id, **c.params)
         comp.registry = registry
+        for name, bounds in c.inputs.items():  # the graph's bounds of an input, over the component's own
+            port = comp.inputs[name]
+            port.maxsize = bounds.get("maxsize", port.maxsize)
+            port.overflow = bounds.get("overflow", port.overflow)
+            port.maxbytes = bounds.get("maxbytes", port.maxbytes)
         net.add(comp, on_error=c.on_error)
     for c in spec.connections:
         net.connect(net.components[c.src].outputs[c.out], net.components[c.dst].inputs[c.inp], c.delayed)

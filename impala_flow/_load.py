@@ -14,6 +14,8 @@ Each stage returns the problems it found; the session raises them all at once.
     components:
       mission: {type: io.Replayer, params: {path: "${mission}"}}
       slam: {type: slam.RSlam, on_error: stop}   # on_error: stop | skip
+      # an input's bounds, over the component's own: a slow stage keeps the newest turn
+      # rslam: {type: slam.RSlam, inputs: {image: {maxsize: 1, overflow: drop_oldest}}}
     connections:
       - mission.radar/beams -> slam.beams        # "a.out -> b.in"; "[delay]" breaks a cycle
     record: {path: "${out}/run.mcap", streams: ["slam.*"]}
@@ -45,6 +47,7 @@ from typing import Any
 
 import yaml
 
+from ._ports import OVERFLOWS
 from ._spec import (
     CONNECTION,
     ComponentSpec,
@@ -71,11 +74,13 @@ from ._yamlloc import (
     shown,
 )
 
-__all__ = ["read_graph", "parse_set", "TOP_KEYS", "COMPONENT_KEYS", "CLOCK_KEYS", "RECORD_KEYS", "MAX_GRAPH_BYTES",
-           "graph_files"]
+__all__ = ["read_graph", "parse_set", "TOP_KEYS", "COMPONENT_KEYS", "INPUT_KEYS", "CLOCK_KEYS", "RECORD_KEYS",
+           "MAX_GRAPH_BYTES", "graph_files"]
 
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
-COMPONENT_KEYS = ("type", "params", "on_error", "description", "override")
+COMPONENT_KEYS = ("type", "params", "on_error", "description", "override", "inputs")
+#: what a graph may set of a component's input (``inputs: {name: {...}}``)
+INPUT_KEYS = ("maxsize", "overflow", "maxbytes")
 CLOCK_KEYS = ("mode", "speed")
 RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxsize", "flush_period_s")
 #: most bytes of a graph with all its includes (validation stays well under a second)
@@ -434,6 +439,7 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
         problems.append(Problem(c.value_where("override"), f"component '{cid}': override must be true or false, "
                                                            f"got {brief(override)}"))
         override = False
+    inputs, input_locs = _parse_inputs(cid, c, problems)
     old = spec.components.get(cid)
     if old is not None and "type" not in c and not override:  # an includer refining an included component
         old.params.update(params)
@@ -441,6 +447,9 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
             old.param_locs.update(params.key_locs)
         if "on_error" in c:
             old.on_error = c["on_error"]
+        for name, bounds in inputs.items():
+            old.inputs.setdefault(name, {}).update(bounds)
+        old.input_locs.update(input_locs)
         return
     if old is not None and not override:
         problems.append(Problem(loc, f"component '{cid}' is already defined at {old.def_loc}: write "
@@ -459,7 +468,50 @@ def _merge_component(spec: GraphSpec, cid: Any, c: Any, loc: Loc | None, problem
     spec.components[cid] = ComponentSpec(
         cid, str(c["type"]), dict(params), on_error, c.where("type"),
         dict(params.key_locs) if isinstance(params, LocDict) else {}, loc,
+        inputs=inputs, input_locs=input_locs,
     )
+
+
+def _parse_inputs(cid: str, c: LocDict, problems: list[Problem]) -> tuple[dict[str, dict[str, Any]], dict[str, Loc]]:
+    """A component's ``inputs: {name: {maxsize: n, overflow: policy, maxbytes: n}}`` (the bounds
+    a graph sets over the component's own declaration); whether each input exists is checked by
+    validation, against the component's ports."""
+    raw = c.get("inputs")
+    if raw is None:
+        return {}, {}
+    if not isinstance(raw, LocDict):
+        problems.append(Problem(c.value_where("inputs"), f"component '{cid}': inputs must be a mapping "
+                                "{input: {maxsize: n, overflow: drop_oldest, maxbytes: n}}"))
+        return {}, {}
+    out: dict[str, dict[str, Any]] = {}
+    locs: dict[str, Loc] = {}
+    for name, bounds in raw.items():
+        where = raw.where(name)
+        if not isinstance(bounds, LocDict) or not bounds:
+            problems.append(Problem(raw.value_where(name), f"component '{cid}': input '{shown(name)}' takes a "
+                                    f"mapping of {', '.join(INPUT_KEYS)}, got {brief(bounds)}"))
+            continue
+        _check_keys(bounds, INPUT_KEYS, f"component '{cid}', input '{shown(name)}'", problems)
+        ok: dict[str, Any] = {}
+        for key in INPUT_KEYS:
+            if key not in bounds:
+                continue
+            v = bounds[key]
+            if key == "overflow":
+                good = v in OVERFLOWS
+                want = f"one of {', '.join(OVERFLOWS)}"
+            else:
+                good = isinstance(v, int) and not isinstance(v, bool) and 1 <= v < 1 << 62
+                want = "an integer >= 1" + (" (samples)" if key == "maxsize" else " (bytes)")
+            if good:
+                ok[key] = v
+            else:
+                problems.append(Problem(bounds.value_where(key), f"component '{cid}', input '{shown(name)}': "
+                                        f"{key} must be {want}, got {brief(v)}"))
+        out[str(name)] = ok
+        if where is not None:
+            locs[str(name)] = where
+    return out, locs
 
 
 def _parse_connection(item: Any, loc: Loc | None, problems: list[Problem]) -> ConnectionSpec | None:

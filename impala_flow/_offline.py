@@ -54,6 +54,12 @@ was called, even one whose ``start()`` raised (so it can release what it took);
 raises is reported on its own line (``RunSummary.errors``), never instead of the first.
 Samples still in flight when a run is interrupted or fails are counted as ``unconsumed``
 (``unmatched`` in sync groups) at the inputs they were going to.
+
+``duration_ns`` (``--duration``) stops reading the sources at the mission's first time + that
+span, then ends as at the end of the inputs (flush included): the run of the shortened inputs.
+Every ``process`` call is timed with ``time.perf_counter_ns`` into ``summary.timing``
+(:mod:`impala_flow._timing`); the timing never feeds back into the run, so outputs stay
+bit-identical. No latency is reported offline (mission time stands still while a component runs).
 """
 
 from __future__ import annotations
@@ -71,6 +77,7 @@ from ._lifecycle import Lifecycle, check_source_time
 from ._network import Network
 from ._ports import InputPort, OutputPort, OutputTypeError
 from ._summary import ComponentError, RunSummary, log_skip
+from ._timing import Histogram, timing_figures
 
 __all__ = ["OfflineExecutor", "run_offline", "timer_problems", "MAX_TIMER_FIRINGS", "IDLE_TIMER_FIRINGS"]
 
@@ -172,13 +179,23 @@ def _live_source(c: Component) -> str | None:
 
 
 class OfflineExecutor:
-    """Runs a :class:`Network` offline. ``stop_event`` ends it cleanly (Ctrl-C)."""
+    """Runs a :class:`Network` offline. ``stop_event`` ends it cleanly (Ctrl-C).
+
+    ``duration_ns`` ends the run after that much mission time: a source's samples stamped at
+    or after the mission's first time + ``duration_ns`` are not taken (its generator is
+    closed), what was taken is processed and every component flushed, as at the end of the
+    inputs; the summary says so (``stopped_at_duration``). The run is the same as one whose
+    sources ended there, hence as deterministic.
+    """
 
     def __init__(
         self, network: Network, clock: ReplayClock | None = None,
         progress: ProgressFn | None = None, stop_event: threading.Event | None = None,
-        progress_interval_s: float = 0.25,
+        progress_interval_s: float = 0.25, duration_ns: int | None = None,
     ) -> None:
+        if duration_ns is not None and duration_ns <= 0:
+            raise ValueError(f"duration_ns must be > 0, got {duration_ns}")
+        self.duration_ns = duration_ns
         self.net = network
         self.clock = clock or ReplayClock(None)
         self.progress = progress
@@ -196,6 +213,11 @@ class OfflineExecutor:
         push, pop = heapq.heappush, heapq.heappop
         summary = self.summary
         counts = {c: 0 for c in order}  # by component: no .name lookup per call
+        hists = {c: Histogram() for c in order}  # time per process call (perf_counter_ns)
+        pc = time.perf_counter_ns
+        duration_ns = self.duration_ns
+        end_ns = _INT64_MAX + 1  # the first source time not taken (--duration), known at the first event
+        summary.duration_s = None if duration_ns is None else duration_ns / 1e9
         skipped = {c.name: 0 for c in order}
         timers_skipped: dict[Component, int] = {}
         skip = {name for name, pol in self.net.on_error.items() if pol == "skip"}
@@ -238,6 +260,16 @@ class OfflineExecutor:
             st[3] = t
             push(heap, (t, st[2], next_seq(), _SRC, src, (port, data)))
 
+        def close_source(src: Source, t: int) -> None:
+            """--duration reached: close ``src``'s generator (its cleanup runs), take nothing more."""
+            summary.stopped_at_duration = True
+            close = getattr(src_state[src][0], "close", None)
+            if close is not None:
+                try:
+                    close()
+                except Exception as e:
+                    raise ComponentError(src.name, "generate", t, "generate", e) from e
+
         def failed(comp: Component, trig: str, t: int, e: Exception) -> None:
             """A ``process`` call raised: count and log it (``on_error: skip``) or stop the run."""
             if comp.name not in skip:
@@ -270,16 +302,21 @@ class OfflineExecutor:
             wait_until = None if type(clock) is ReplayClock and clock.speed is None else clock.wait_until
 
             def drain() -> None:
-                nonlocal cur_t, now_t, events, next_check, last_progress
+                nonlocal cur_t, now_t, events, next_check, last_progress, end_ns
                 while heap:
                     ev = pop(heap)
                     t, k, _, kind, a, b = ev
+                    if kind == _SRC and t >= end_ns:  # past --duration: this source is not read further
+                        close_source(a, t)
+                        continue
                     if t > now_t:
                         if kind == _TIMER and len(heap) == n_timers - 1:
                             push(heap, (t, k, next_seq(), kind, a, b))  # kept for a flush that emits
                             return  # only timers left, past the last sample: the mission is over
                         if cur_t is None:
                             summary.mission_start_ns = t
+                            if duration_ns is not None:
+                                end_ns = t + duration_ns
                         cur_t = now_t = t
                         if wait_until is not None:
                             wait_until(t)
@@ -340,12 +377,14 @@ class OfflineExecutor:
                         if not idle:
                             push(heap, (due, k, next(seq), _TIMER, a, b))
                         a.trigger = trig
+                        t0 = pc()
                         try:
                             a.process(t)
                         except Exception as e:
                             failed(a, trig, t, e)
                         else:
                             counts[a] += 1
+                        hists[a].add(pc() - t0)
                         if idle:  # after process(): what it emitted counts as pending
                             pending = [e[0] for e in heap if e[3] != _TIMER]
                             if pending and min(pending) > due:  # skip to the next pending event
@@ -366,12 +405,14 @@ class OfflineExecutor:
                         trig = group.name
                         t = max(x.timestamp for x in cur)  # type: ignore[union-attr]
                     comp.trigger = trig
+                    t0 = pc()
                     try:
                         comp.process(t)
                     except Exception as e:
                         failed(comp, trig, t, e)
                     else:
                         counts[comp] += 1
+                    hists[comp].add(pc() - t0)
                     if group is not None and group.match():  # samples that arrived while it was pending
                         push(heap, (ev[0], k | 1, next(seq), _TRIG, a, None))
 
@@ -397,11 +438,13 @@ class OfflineExecutor:
             error = life.finish(error, processed={c.name: n for c, n in counts.items()},
                                 skipped={k: v for k, v in skipped.items() if v}, unconsumed=in_flight,
                                 extra={c.name: {"timer_firings_skipped": n} for c, n in timers_skipped.items()})
+            summary.timing = timing_figures({c.name: h for c, h in hists.items()}, summary.wall_s)
             if self.progress is not None and cur_t is not None:
                 self.progress(cur_t, summary.mission_start_ns)
         return life.result(error)
 
 
 def run_offline(network: Network, speed: float | None = None, **kw: Any) -> RunSummary:
-    """Run ``network`` on the deterministic executor, paced at ``speed`` (None: max)."""
+    """Run ``network`` on the deterministic executor, paced at ``speed`` (None: max); keywords as
+    :class:`OfflineExecutor` (``duration_ns``, ``stop_event``, ...)."""
     return OfflineExecutor(network, ReplayClock(speed), **kw).run()

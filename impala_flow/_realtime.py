@@ -80,6 +80,17 @@ raises. Then, in this order:
    Steps 4 and 5 (and starting the components in graph order) are the lifecycle both
    executors share (:mod:`impala_flow._lifecycle`).
 
+Duration, time per call, latency
+--------------------------------
+``duration_ns`` ends the run like the end of the inputs (sources stop, step 2 with the
+flush) once the mission clock has run that long; ``summary.stopped_at_duration`` says so.
+Every ``process`` call is timed (``time.perf_counter_ns``) into the component's histogram, and
+every sample carries the origin of its work (``Sample.entered_ns``: a source's sample its arrival
+on the mission clock, a component's emission the origin of the sample that triggered the call,
+set per worker thread); its first delivery records ``now - origin`` per output. Both go to the
+summary (``timing``, ``latency``; :mod:`impala_flow._timing`): about 1 us per call and per
+emitted sample, memory bounded by the histograms' buckets.
+
 Equal timestamps: samples are delivered as they come; the executor cannot wait for a
 sample that may never arrive, so the offline equal-timestamp rule (see
 :mod:`impala_flow._offline`) is not guaranteed live: read equal-time streams through a sync
@@ -111,6 +122,7 @@ from ._network import Network
 from ._ports import InputPort, SyncGroup
 from ._sample import Sample
 from ._summary import ComponentError, RunSummary, log_skip
+from ._timing import Histogram, latency_figures, timing_figures
 
 __all__ = ["RealTimeExecutor", "run_realtime", "BATCH"]
 
@@ -133,7 +145,7 @@ class _State:
 
     __slots__ = (
         "comp", "lock", "mailbox", "scheduled", "halted", "skip", "count", "skipped", "delivered",
-        "unconsumed", "timers_pending", "missed_ticks",
+        "unconsumed", "timers_pending", "missed_ticks", "hist",
     )
 
     def __init__(self, comp: Component, skip: bool) -> None:
@@ -149,6 +161,7 @@ class _State:
         self.unconsumed: dict[InputPort, int] = {}  # reactive samples discarded at stop
         self.timers_pending: set[str] = set()
         self.missed_ticks = 0
+        self.hist = Histogram()  # time per process call
 
 
 class _SourceRun:
@@ -170,16 +183,22 @@ class RealTimeExecutor:
     ``stop_event`` ends the run cleanly; ``progress(now_ns, start_ns)`` is called from the
     calling thread every ``progress_interval_s``; ``clock`` (anything with ``now_ns()``)
     defaults to a fresh :class:`MissionClock`; ``workers`` sizes the pool (default: one
-    per triggerable component).
+    per triggerable component). ``duration_ns`` ends the run after that much mission (here:
+    wall) time as at the end of the inputs: the sources stop, what they delivered is processed
+    and every component flushed (``summary.stopped_at_duration``; an interrupt does not flush).
     """
 
     def __init__(
         self, network: Network, stop_event: threading.Event | None = None,
         progress: ProgressFn | None = None, clock: _Clock | None = None, workers: int | None = None,
         *, drain_timeout_s: float = 2.0, stop_timeout_s: float = 5.0, progress_interval_s: float = 0.25,
+        duration_ns: int | None = None,
     ) -> None:
         if workers is not None and workers < 1:
             raise ValueError("workers must be >= 1")
+        if duration_ns is not None and duration_ns <= 0:
+            raise ValueError(f"duration_ns must be > 0, got {duration_ns}")
+        self.duration_ns = duration_ns
         self.net = network
         self.stop_event = stop_event or threading.Event()
         self.progress = progress
@@ -200,6 +219,8 @@ class RealTimeExecutor:
         self._states: list[_State] = []
         self._timer_ticks = 0
         self._source_skips: dict[str, int] = {}
+        self._origin = threading.local()  # origin_ns: the origin of the sample a worker's process() handles
+        self._latency: dict[str, Histogram] = {}  # "component.output" -> emit - origin
 
     # --- errors ---------------------------------------------------------------------
     def _fail(self, err: ComponentError) -> None:
@@ -235,6 +256,7 @@ class RealTimeExecutor:
 
     def _drain(self, st: _State) -> None:
         comp, lock, mailbox = st.comp, st.lock, st.mailbox
+        tl, pc, hist = self._origin, time.perf_counter_ns, st.hist
         n = 0
         while True:
             with lock:
@@ -250,18 +272,24 @@ class RealTimeExecutor:
                     if not fifo:
                         continue  # its sample was dropped (drop_oldest) or taken already
                     t = fifo[0].timestamp
+                    origin = fifo[0].entered_ns
                     trig = obj.trigger_name
                 elif kind == _SYNC:
                     cur = [m._current for m in obj.members]
                     if any(s is None for s in cur):
                         continue
                     t = max(s.timestamp for s in cur)  # type: ignore[union-attr]
+                    origin = max((s.entered_ns for s in cur if s.entered_ns is not None),  # type: ignore[union-attr]
+                                 default=None)
                     trig = obj.name
                 else:
                     trig = obj
+                    origin = t  # a timer: its tick's time
                     st.timers_pending.discard(obj)
             n += 1
             comp.trigger = trig
+            tl.origin_ns = origin
+            t0 = pc()
             try:
                 comp.process(t)
             except Exception as e:
@@ -279,6 +307,9 @@ class RealTimeExecutor:
                     return
             else:
                 st.count += 1
+            finally:
+                hist.add(pc() - t0)
+                tl.origin_ns = None
             if kind == _SYNC:  # samples that arrived while the match was pending
                 with lock:
                     if obj.match():
@@ -435,8 +466,20 @@ class RealTimeExecutor:
                     route[inp] = (st, groups[inp.group] if inp.group is not None else (_IN, inp, 0))
         self._states = list(states.values())
         schedule = self._schedule_locked
+        tl, latency = self._origin, self._latency
 
         def deliver(inp: InputPort, s: Sample, delayed: bool) -> None:
+            if s.entered_ns is None:  # its first delivery: where its origin is set, and its latency taken
+                origin = getattr(tl, "origin_ns", None)
+                arrived = now()
+                if origin is None:  # a source's sample (or one emitted outside process()): it enters now
+                    s.entered_ns = arrived
+                else:
+                    s.entered_ns = origin
+                    h = latency.get(s.origin)
+                    if h is None:
+                        h = latency[s.origin] = Histogram()
+                    h.add(arrived - origin)
             st, entry = route[inp]
             with st.lock:
                 if st.halted:  # closing: counted, never silently lost
@@ -525,20 +568,28 @@ class RealTimeExecutor:
             if st.missed_ticks:
                 extra.setdefault(st.comp.name, {})["missed_ticks"] = st.missed_ticks
         removed = {inp: n for st in self._states for inp, n in st.unconsumed.items()}
-        return life.finish(self._error, earlier=self._later,
-                           processed={c.name: states[c.name].count if c.name in states else 0 for c in life.order},
-                           skipped=skipped, unconsumed=removed, extra=extra)
+        error = life.finish(self._error, earlier=self._later,
+                            processed={c.name: states[c.name].count if c.name in states else 0 for c in life.order},
+                            skipped=skipped, unconsumed=removed, extra=extra)
+        summary.timing = timing_figures({st.comp.name: st.hist for st in self._states}, summary.wall_s)
+        summary.latency = latency_figures(dict(self._latency))
+        return error
 
     def _wait(self, sources: list[_SourceRun], start_ns: int, endless: bool) -> None:
         """Block the calling thread until the run should end (``endless``: only on a stop)."""
         wake, stop = self._wake, self.stop_event
         last_progress = time.perf_counter()
+        end_ns = None if self.duration_ns is None else start_ns + self.duration_ns
+        self.summary.duration_s = None if self.duration_ns is None else self.duration_ns / 1e9
         while True:
             all_done = all(r.done for r in sources)
             wake.wait(0.01 if all_done else 0.05)
             wake.clear()
             if stop.is_set():
                 self.summary.interrupted = True
+                return
+            if end_ns is not None and self.clock.now_ns() >= end_ns and self._error is None:
+                self.summary.stopped_at_duration = True  # an end of the inputs: flushed, not interrupted
                 return
             if self._error is not None:
                 return

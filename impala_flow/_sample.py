@@ -16,10 +16,12 @@ class Sample:
     read-only once emitted, so a sample is shared, never copied, by every input it
     reaches, and checked once for validity (:mod:`impala_flow._ports`). ``nbytes`` caches the
     size of ``data`` once an input bounded in bytes has measured it (-1 until then; see
-    :func:`impala_flow._ports.sample_nbytes`).
+    :func:`impala_flow._ports.sample_nbytes`). ``entered_ns`` is set by the real-time executor
+    only: the mission clock when the sample's origin entered the graph (the latency figures of
+    :mod:`impala_flow._timing`); None otherwise.
     """
 
-    __slots__ = ("timestamp", "data", "seq", "origin", "nbytes", "invalid")
+    __slots__ = ("timestamp", "data", "seq", "origin", "nbytes", "invalid", "entered_ns")
 
     def __init__(self, timestamp: int, data: Any, seq: int = 0, origin: str = "") -> None:
         self.timestamp = timestamp
@@ -30,6 +32,7 @@ class Sample:
         # why ``data`` is invalid ('' when valid, None before any input checked it): the first
         # input that checks a sample keeps the verdict, so a fanned-out sample is checked once
         self.invalid: str | None = None
+        self.entered_ns: int | None = None
 
     @property
     def t_ns(self) -> int:

@@ -130,6 +130,19 @@ def _component_schema(registry: Registry, rules: list[dict[str, Any]]) -> dict[s
         "on_error": {"enum": ["stop", "skip"], "default": "stop",
                      "description": "stop: an exception stops the graph; skip: the sample is skipped and counted"},
         "description": {"type": "string"},
+        "inputs": {
+            "type": "object", "description": "bounds of some inputs, over the component's own: "
+            "{input: {maxsize: 1, overflow: drop_oldest}} keeps only the newest sample of a slow stage",
+            "additionalProperties": {
+                "type": "object", "additionalProperties": False, "minProperties": 1,
+                "properties": {
+                    "maxsize": {"type": "integer", "minimum": 1, "description": "samples the input queues"},
+                    "overflow": {"enum": ["block", "drop_oldest", "drop_newest"],
+                                 "description": "when full: block the producer (live) or drop a whole sample"},
+                    "maxbytes": {"type": "integer", "minimum": 1, "description": "bytes the input queues"},
+                },
+            },
+        },
         "override": {"type": "boolean", "default": False,
                      "description": "replace the component of the same id defined in an included file "
                                     "(without it, defining an id twice is an error)"},

@@ -124,12 +124,17 @@ class Session:
         return build(spec, self.registry)
 
     def run(self, spec: GraphSpec | Network, speed: Any = None, mode: str | None = None,
-            progress: Callable[[int, int | None], None] | None = None) -> RunSummary:
+            progress: Callable[[int, int | None], None] | None = None,
+            duration_s: float | None = None) -> RunSummary:
         """Run a graph (or an already built network) offline or live.
 
         ``mode`` (``replay`` or ``realtime``) and ``speed`` (``'max'`` or a factor) default
         to the graph's ``clock:`` section; a bare network runs offline at max speed.
+        ``duration_s`` stops the run after that many seconds of mission time (live: of wall
+        time) as if the inputs ended there: what was read is processed and flushed
+        (``summary.stopped_at_duration``).
         """
+        duration_ns = None if duration_s is None else int(round(duration_s * 1e9))
         if isinstance(spec, Network):
             net, mode = spec, mode or "replay"
             speed = "max" if speed is None else speed
@@ -140,6 +145,8 @@ class Session:
             if mode == "realtime":
                 from ._realtime import RealTimeExecutor
 
-                return RealTimeExecutor(net, stop_event=self.stop_event, progress=progress).run()
+                return RealTimeExecutor(net, stop_event=self.stop_event, progress=progress,
+                                        duration_ns=duration_ns).run()
             clock = ReplayClock(parse_speed(speed))
-            return OfflineExecutor(net, clock, progress=progress, stop_event=self.stop_event).run()
+            return OfflineExecutor(net, clock, progress=progress, stop_event=self.stop_event,
+                                   duration_ns=duration_ns).run()

@@ -123,6 +123,10 @@ class ComponentSpec:
     param_locs: dict[str, Loc] = field(default_factory=dict)
     def_loc: Loc | None = None
     param_bases: dict[str, str] = field(default_factory=dict)
+    #: the graph's bounds of some inputs: {input: {"maxsize": n, "overflow": policy, "maxbytes": n}}
+    inputs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: where each input of ``inputs`` is written
+    input_locs: dict[str, Loc] = field(default_factory=dict)
 
 
 @dataclass
@@ -160,7 +164,8 @@ class GraphSpec:
             "name": self.name,
             "clock": {"mode": self.clock_mode, "speed": self.speed},
             "components": {
-                c.id: {"type": c.type, "params": dict(c.params), "on_error": c.on_error}
+                c.id: {"type": c.type, "params": dict(c.params), "on_error": c.on_error,
+                       **({"inputs": {k: dict(v) for k, v in c.inputs.items()}} if c.inputs else {})}
                 for c in self.components.values()
             },
             "connections": [str(c) for c in self.connections],

@@ -49,6 +49,13 @@ class ComponentError(RuntimeError):
 _KINDS = {"dropped_maxbytes": "dropped (the input held its maxbytes)"}
 
 
+def _ms(v: float) -> str:
+    """A duration given in ms, printed with 3 significant digits in us, ms or s."""
+    if v >= 999.5:
+        return f"{v / 1000:.3g} s"
+    return f"{v:.3g} ms" if v >= 1 else f"{v * 1000:.3g} us"
+
+
 @dataclass
 class RunSummary:
     graph: str = "graph"
@@ -65,6 +72,13 @@ class RunSummary:
     emitted: dict[str, int] = field(default_factory=dict)  # "comp.port" -> count
     inputs: dict[str, dict[str, int]] = field(default_factory=dict)  # "comp.port" -> stats
     extra: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: the run was given a duration (s, mission time; live: wall time) and stopped there
+    duration_s: float | None = None
+    stopped_at_duration: bool = False
+    #: time per ``process`` call, per component (:mod:`impala_flow._timing`)
+    timing: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: latency per component output, real time only: mission clock at emit - origin (:mod:`impala_flow._timing`)
+    latency: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def mission_s(self) -> float:
@@ -145,6 +159,7 @@ class RunSummary:
         lines = [
             f"graph '{self.graph}': {self.events} events, mission {self.mission_s:.3f} s "
             f"in {self.wall_s:.3f} s wall (x{self.speed_ratio:.1f})"
+            + (f" - stopped at --duration {self.duration_s:g} s" if self.stopped_at_duration else "")
             + (" - INTERRUPTED" if self.interrupted else "")
             + (f" - FAILED: {self.error}" if self.error else "")
         ]
@@ -160,7 +175,14 @@ class RunSummary:
                 first = self.first_skip.get(name)
                 bits.append(f"{self.skipped[name]} skipped after errors" + (f" (first at {first})" if first else ""))
             bits += [f"{k}={v}" for k, v in extra.items()]
+            tm = self.timing.get(name)
+            if tm:
+                bits.append(f"{_ms(tm['median_ms'])} median, {_ms(tm['p99_ms'])} p99 per call, "
+                            f"{tm['total_s']:.3g} s in all ({100 * tm['share']:.0f} % of the run)")
             lines.append(f"  {name}: " + ", ".join(bits))
+        for key, lat in self.latency.items():
+            lines.append(f"  LATENCY {key}: {_ms(lat['median_ms'])} median, {_ms(lat['p99_ms'])} p99, "
+                         f"{_ms(lat['max_ms'])} max over {lat['count']} samples (emit - arrival of what started it)")
         drops = self.drops()
         for k, v in drops.items():
             lost = {kind: n for kind, n in v.items() if kind != "invalid"}

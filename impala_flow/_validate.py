@@ -148,6 +148,12 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
         if not c.delayed:
             edges.append((c.src, c.dst, c))
     for cid, (_, _, ins, _) in ports.items():
+        comp = spec.components[cid]
+        for name in comp.inputs:  # the graph's bounds of an input: the input must exist
+            if name not in ins:
+                problems.append(Problem(comp.input_locs.get(name, comp.loc),
+                                        f"component '{cid}' ({comp.type}): inputs: no input '{name}'"
+                                        + did_you_mean(closest(name, ins), f"; inputs: {', '.join(ins) or 'none'}")))
         for name, decl in ins.items():
             if decl.required and (cid, name) not in connected and cid != RECORDER_ID:
                 problems.append(Problem(spec.components[cid].loc,

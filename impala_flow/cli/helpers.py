@@ -145,8 +145,10 @@ class Progress:
 
 
 def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = False,
-                progress: bool | None = None, on_summary: Callable[[RunSummary], None] | None = None) -> int:
-    """Build and run ``spec``, show progress, print the summary, return the exit code."""
+                progress: bool | None = None, on_summary: Callable[[RunSummary], None] | None = None,
+                duration_s: float | None = None) -> int:
+    """Build and run ``spec`` (for ``duration_s`` seconds of mission time when given), show
+    progress, print the summary, return the exit code (0 when it stopped at ``duration_s``)."""
     check_speed(speed)
     net = session.build(spec)
     bad = timer_problems(net)  # a timer that would spin over the mission's span: refused before it starts
@@ -155,7 +157,7 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
     bar = Progress(net, enabled=progress)
     try:
         summary = session.run(net, speed=speed if speed is not None else spec.speed,
-                              mode=spec.clock_mode, progress=bar)
+                              mode=spec.clock_mode, progress=bar, duration_s=duration_s)
     except ComponentError as e:
         bar.close()
         partial = getattr(e, "summary", None)

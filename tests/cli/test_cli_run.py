@@ -138,3 +138,56 @@ def test_debug_shows_the_traceback(installed: Installed, write: Write) -> None:
     assert r.returncode == 1
     assert "Traceback (most recent call last)" in r.stderr
     assert "boom on purpose" in r.stderr
+
+
+LIVE_RECORDED = """\
+name: live-recorded
+clock: {mode: realtime}
+components:
+  src: {type: clitest.Ticker, params: {count: 1000000, period: 0.02}}
+  gain: {type: clitest.Gain, params: {gain: 3.0}}
+connections:
+  - src.tick -> gain.x
+record: {path: live.mcap, streams: ["gain.y"]}
+"""
+
+
+def test_run_duration_offline_takes_that_much_mission_and_exits_0(installed: Installed, write: Write,
+                                                                  tmp_path: Path) -> None:
+    g = write("small.yaml", CHAIN)
+    r = installed.run("run", str(g), "--duration", "1", "--summary-json", str(tmp_path / "s.json"))
+    assert r.returncode == 0, r.stderr
+    # samples every 0.5 s from t=0: the first second holds t=0 and t=0.5
+    assert r.stdout.splitlines() == ["value t=0 0.0", "value t=500000000 3.0"]
+    head = r.stderr.splitlines()[0] if r.stderr.startswith("graph") else \
+        next(line for line in r.stderr.splitlines() if line.startswith("graph 'small'"))
+    assert head.endswith("- stopped at --duration 1 s")
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["stopped_at_duration"] is True and summary["interrupted"] is False
+    assert summary["duration_s"] == 1.0 and summary["processed"]["out"] == 2
+    assert summary["timing"]["gain"]["calls"] == 2 and summary["latency"] == {}
+
+
+def test_run_duration_live_closes_the_recording(installed: Installed, write: Write, tmp_path: Path) -> None:
+    from impala_flow.io import MissionReader
+
+    g = write("live.yaml", LIVE_RECORDED)
+    r = installed.run("run", str(g), "--duration", "0.5", "--no-progress", "--summary-json", str(tmp_path / "s.json"))
+    assert r.returncode == 0, r.stderr
+    assert "stopped at --duration 0.5 s" in r.stderr and "INTERRUPTED" not in r.stderr
+    summary = json.loads((tmp_path / "s.json").read_text())
+    n = summary["emitted"]["gain.y"]
+    assert n > 0 and summary["processed"]["record"] == n
+    assert summary["latency"]["gain.y"]["count"] == n
+    assert any(line.startswith("  LATENCY gain.y: ") for line in r.stderr.splitlines())
+    with MissionReader(tmp_path / "live.mcap") as rec:       # a complete file: closed, with its summary
+        assert rec.info().complete
+        values = [m.data for m in rec.messages()]
+    assert values == [3.0 * i for i in range(n)]
+
+
+@pytest.mark.parametrize("bad", ["0", "-1", "nan", "inf", "soon"])
+def test_run_duration_must_be_a_positive_number(installed: Installed, write: Write, bad: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = installed.main("run", str(write("small.yaml", CHAIN)), f"--duration={bad}", capsys=capsys)
+    assert code == 2 and f"argument --duration: expected a number of seconds > 0, got '{bad}'" in err

@@ -144,7 +144,8 @@ def test_load_reports_every_stage_problem_at_once(tmp_path, session):
     """))
     spec, problems = session.read(graph)
     assert [p.message for p in problems] == [
-        "unknown key 'colour' in component 'sink'; expected one of type, params, on_error, description, override"]
+        "unknown key 'colour' in component 'sink'; expected one of type, params, on_error, description, override, "
+        "inputs"]
     with pytest.raises(GraphError) as e:
         session.load(graph)
     # load's problem first, then validate's, each located
