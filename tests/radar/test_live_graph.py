@@ -34,14 +34,14 @@ def _poses(path: Path, topic: str) -> dict[int, tuple[float, float, float]]:
         return {m.t_ns: (m.data.x_m, m.data.y_m, m.data.theta_rad) for m in r.messages([topic])}
 
 
-def _truth_speeds_mps(folder: Path) -> list[float]:
-    """Oxford's radar odometry (the scan-to-scan ground truth) over the sample's scans: the
-    vehicle's speed between consecutive scans, each row's distance over its two scans' times (µs)."""
-    scans = {line.split()[0] for line in (folder / "radar.timestamps").read_text().splitlines() if line.strip()}
+def _truth_speeds_mps(folder: Path) -> dict[int, float]:
+    """Oxford's radar odometry (the scan-to-scan ground truth): source scan time (ns, the middle
+    of the scan, on the radar's clock) -> the vehicle's speed since the previous scan, the row's
+    distance over its two scans' times."""
     with open(folder / "gt" / "radar_odometry.csv", newline="") as f:
-        return [math.hypot(float(r["x"]), float(r["y"]))
+        return {int(r["source_timestamp"]) * 1000: math.hypot(float(r["x"]), float(r["y"]))
                 / ((int(r["source_timestamp"]) - int(r["destination_timestamp"])) * 1e-6)
-                for r in csv.DictReader(f) if r["source_radar_timestamp"] in scans]
+                for r in csv.DictReader(f)}
 
 
 @pytest.fixture(scope="module")
@@ -75,17 +75,29 @@ def test_the_live_run_stops_at_its_duration_with_a_valid_recording(live_run):
 
 
 def test_live_poses_follow_the_ground_truth(live_run):
-    """R-SLAM's live speed, pose to pose, against Oxford's ground truth: the stamps keep the
-    device's spacing (the recorded times), so distance over stamp difference is the speed, also
-    across a turn R-SLAM dropped. graphs/oxford.yaml's pair errors offline are 7 cm per turn
-    (0.3 m/s at 4 Hz)."""
-    out, _, _ = live_run
+    """R-SLAM's live speed, pose to pose, against Oxford's ground truth. A pose is stamped at
+    the middle of its turn on mission time: the driver's clock mapping (its summary's offset)
+    gives it back on the radar's clock, where the ground truth's scans are stamped. Over a
+    step (two turns if R-SLAM dropped one) the truth speed is the mean of its scans'.
+    graphs/oxford.yaml's pair errors offline are 7 cm per turn on average, 0.3 m/s at 4 Hz; live,
+    on a loaded machine, a turn may be imaged with an older twist (stale_twist) and R-SLAM's first
+    turns follow the bootstrap: 0.5 m/s (6 % of the 8 m/s driven) at the median, 1 m/s at most."""
+    out, summary, _ = live_run
+    clock = summary["extra"]["radar"]["clock"]
     poses = sorted(_poses(out / "live.mcap", "slam/pose").items())
-    live = sorted(math.hypot(b[0] - a[0], b[1] - a[1]) / ((tb - ta) * 1e-9)
-                  for (ta, a), (tb, b) in zip(poses, poses[1:], strict=False))
-    truth = sorted(_truth_speeds_mps(OXFORD))
-    assert len(live) >= 2 and len(truth) == 11
-    assert abs(live[len(live) // 2] - truth[len(truth) // 2]) < 0.4, (live, truth)
+    truth = _truth_speeds_mps(OXFORD)
+
+    def device_ns(t_ns: int) -> int:  # mission = device + offset (+ the drift term: < 3 ms over a few seconds)
+        return t_ns - clock["offset_ns"]
+
+    errors = []
+    for (ta, a), (tb, b) in zip(poses, poses[1:], strict=False):
+        da, db = device_ns(ta), device_ns(tb)
+        scans = [v for t, v in truth.items() if da + 50e6 < t < db + 50e6]  # the scans of (a, b]
+        assert scans and abs(min(truth, key=lambda t: abs(t - db)) - db) < 20e6  # b is a scan's middle
+        live = math.hypot(b[0] - a[0], b[1] - a[1]) / ((tb - ta) * 1e-9)
+        errors.append(abs(live - sum(scans) / len(scans)))
+    assert len(errors) >= 2 and max(errors) < 1.0 and sorted(errors)[len(errors) // 2] < 0.5, errors
 
 
 def test_each_stage_reports_its_latency(live_run):
@@ -95,8 +107,6 @@ def test_each_stage_reports_its_latency(live_run):
         # every sample a turn's beam started (a partial last turn imaged at the end has no such beam)
         assert summary["emitted"][key] - 1 <= lat[key]["count"] <= summary["emitted"][key]
         assert 0 <= lat[key]["median_ms"] <= lat[key]["p99_ms"] <= lat[key]["max_ms"]
-    # a turn's pose comes after its image: R-SLAM's latency includes the panoramic builder's
-    assert lat["slam.pose"]["median_ms"] >= lat["panoramic.image"]["median_ms"]
 
 
 def test_the_replay_of_the_live_recording_gives_the_live_poses(live_run, tmp_path):
