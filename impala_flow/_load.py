@@ -77,7 +77,7 @@ __all__ = ["read_graph", "parse_set", "TOP_KEYS", "COMPONENT_KEYS", "CLOCK_KEYS"
 TOP_KEYS = ("name", "description", "include", "variables", "clock", "components", "connections", "record")
 COMPONENT_KEYS = ("type", "params", "on_error", "description", "override")
 CLOCK_KEYS = ("mode", "speed")
-RECORD_KEYS = ("path", "streams", "compression", "foxglove", "chunk_size", "maxsize", "flush_period_s")
+RECORD_KEYS = ("path", "streams", "compression", "foxglove", "ros2", "chunk_size", "maxsize", "flush_period_s")
 #: most bytes of a graph with all its includes (validation stays well under a second)
 MAX_GRAPH_BYTES = 2 * MAX_BYTES
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
