@@ -4,13 +4,15 @@ Every recorded topic (or ``--topic``) is written again through the ``ros2`` outp
 :class:`~impala_flow.io.ForeignWriter`), alone (a file ``ros2 bag play`` plays as it is, header profile
 ``ros2``) or, with ``--native``, beside the native channels. The frame tree is rebuilt as the recorder builds
 it: the first recorded of :data:`~impala_flow.io.VEHICLE_POSES` places ``vehicle`` (and ``radar`` on it, at the
-vehicle's origin: the recorder's default mount), every other pose topic a frame of its own name. Damaged chunks
-that held messages of the exported topics stop the export (exit 1) unless ``--allow-loss``.
+vehicle's origin: the recorder's default mount), every other pose topic a frame of its own name. The file is
+written as ``OUT.part`` and renamed when complete. Damaged chunks that held messages of the exported topics stop
+the export (exit 1, no OUT written) unless ``--allow-loss``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Any
 
@@ -31,43 +33,53 @@ def frame_children(pose_topics: list[str]) -> dict[str, str]:
 
 def export_ros2(args: argparse.Namespace) -> int:
     reg = codecs()
+    part = f"{args.ros2}.part"  # renamed to OUT when complete: a failed export leaves no OUT behind
     try:
         with MissionReader(args.file, reg) as r:
             if args.topic and args.topic not in r.topics:
                 raise CommandError(f"{args.file}: no topic {args.topic!r} (recorded: "
                                    f"{', '.join(sorted(r.topics))})", EXIT_USAGE)
             topics = [args.topic] if args.topic else sorted(r.topics)
-            types = {t: r.topic_type(t) for t in topics}
-            frames = frame_children([t for t in topics if types[t] is Pose2D])
-            lo, hi = window(r, args)
-            losses = [line for t in topics if (line := loss_line(r, t))]
-            if losses and not args.allow_loss:
-                raise CommandError(losses[0].replace("nothing exported", "nothing written"), EXIT_FAILED)
             try:
-                writer = MissionWriter(args.ros2, codecs=reg, foreign=("ros2",), native=args.native,
+                writer = MissionWriter(part, codecs=reg, foreign=("ros2",), native=args.native,
                                        foxglove=args.native, metadata=r.metadata() if args.native else None,
                                        flush_period_s=None)
             except CodecError as e:
                 raise CommandError(f"export --ros2: {e}", EXIT_FAILED) from None
             with writer:
-                for t in topics:
-                    writer.add_topic(t, types[t], frames.get(t, ""))
-                n = 0
-                for m in r.messages(topics, lo, hi):
-                    writer.write(m.topic, m.t_ns, m.data, m.seq)
-                    n += 1
-                    child = frames.get(m.topic)
-                    if child is not None and isinstance(m.data, Pose2D):
-                        p = m.data
-                        tf: list[Any] = [(p.frame, child, p.x_m, p.y_m, 0.0, p.theta_rad)]
-                        if child == "vehicle":
-                            tf.append(("vehicle", "radar", 0.0, 0.0, 0.0, 0.0))
-                        writer.write_transforms(m.t_ns, tf)
+                n = _copy(r, writer, topics, *window(r, args))
             summary = writer.foreign_summary()["ros2"]
+            losses = [line for t in topics if (line := loss_line(r, t))]
+            if losses and not args.allow_loss:
+                raise CommandError(losses[0].replace("nothing exported", "nothing written"), EXIT_FAILED)
+        os.replace(part, args.ros2)
     except RecordingError as e:
         raise CommandError(str(e), EXIT_FAILED) from None
+    finally:
+        if os.path.exists(part):
+            os.unlink(part)
     _print_summary(args, n, summary, losses)
     return 0
+
+
+def _copy(r: MissionReader, writer: MissionWriter, topics: list[str], lo: int | None, hi: int | None) -> int:
+    """Every sample of ``topics`` in [lo, hi] through ``writer``, with the recorder's frame tree; their count."""
+    types = {t: r.topic_type(t) for t in topics}
+    frames = frame_children([t for t in topics if types[t] is Pose2D])
+    for t in topics:
+        writer.add_topic(t, types[t], frames.get(t, ""))
+    n = 0
+    for m in r.messages(topics, lo, hi):
+        writer.write(m.topic, m.t_ns, m.data, m.seq)
+        n += 1
+        child = frames.get(m.topic)
+        if child is not None and isinstance(m.data, Pose2D):
+            p = m.data
+            tf: list[Any] = [(p.frame, child, p.x_m, p.y_m, 0.0, p.theta_rad)]
+            if child == "vehicle":
+                tf.append(("vehicle", "radar", 0.0, 0.0, 0.0, 0.0))
+            writer.write_transforms(m.t_ns, tf)
+    return n
 
 
 def _print_summary(args: argparse.Namespace, n: int, summary: dict[str, Any], losses: list[str]) -> None:
