@@ -19,64 +19,12 @@ from impala_flow.plugins import DISABLE_ENV, load_registry
 from impala_ros2.write import encode as enc
 from impala_ros2.write import writer as ros2_writer
 
-from .helpers import channels, ns, ros_messages, yaw
-
-T0 = 1_700_000_000_123_456_789  # odd nanoseconds: a stamp that rounds through a float would show it
-CONFIG = impala_msgs.RadarConfig("test", 77e9, 1e9, 1e3, 1.0, 4, 0.02, 4.0, 3, 0.5, 100.0)
-
-
-def _codecs():
-    return run_codecs(load_registry())
-
-
-def _beam(turn: int, index: int, up: list[float]) -> impala_msgs.RadarBeam:
-    return impala_msgs.RadarBeam(0.1 * index, turn, index, np.array(up, dtype=np.float32),
-                                 np.zeros(0, dtype=np.float32), CONFIG)
+from .helpers import SCAN_POWER, T0, channels, codecs, ns, ros_messages, write_every_type, yaw
 
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("ros2") / "all.mcap"
-    with MissionWriter(path, codecs=_codecs(), foreign=("ros2",)) as w:
-        w.add_topic("slam/pose", msgs.Pose2D, "vehicle")
-        w.add_topic("gps/pose", msgs.Pose2D)
-        w.add_topic("graph/trajectory", msgs.Trajectory2D)
-        w.add_topic("odo/twist", msgs.Twist2D)
-        w.add_topic("map/prob", msgs.Grid)
-        w.add_topic("map/db", msgs.Grid)
-        w.add_topic("map/bool", msgs.Grid)
-        w.add_topic("radar/detections", impala_msgs.RadarDetections)
-        w.add_topic("tracker/tracks", impala_msgs.ObjectStates)
-        w.add_topic("radar/scan", impala_msgs.RadarScan)
-        w.add_topic("radar/beams", impala_msgs.RadarBeam)
-        w.add_topic("odo/speed", impala_msgs.Speed)
-        for i, theta in enumerate([0.3, -2.9, 3.1]):
-            cov = np.diag([0.01, 0.02, 0.003]) if i else np.zeros((0, 0))
-            w.write("slam/pose", T0 + i, msgs.Pose2D(1.5 * i, -2.0, theta, cov, "odom"))
-            w.write_transforms(T0 + i, [("odom", "vehicle", 1.5 * i, -2.0, 0.0, theta),
-                                        ("vehicle", "radar", 0.5, 0.0, 1.2, 0.0)])
-        w.write("gps/pose", T0 + 5, msgs.Pose2D(7.0, 8.0, 0.0))
-        w.write("graph/trajectory", T0 + 10, msgs.Trajectory2D(np.array([T0, T0 + 7]),
-                                                               np.array([[0.0, 1.0, 0.5], [2.0, 3.0, -0.5]])))
-        w.write("odo/twist", T0 + 11, msgs.Twist2D(3.5, -0.25))
-        w.write("map/prob", T0 + 12, msgs.Grid(np.array([[0.0, 0.25, 0.5], [1.0, np.nan, 0.994]]), 0.5, 10.0, 20.0))
-        w.write("map/db", T0 + 13, msgs.Grid(np.array([[-10.0, 0.0], [30.0, 20.0]]), 2.0, -4.0, 0.0, "map"))
-        w.write("map/bool", T0 + 14, msgs.Grid(np.array([[True, False]]), 1.0, 0.0, 0.0))
-        w.write("radar/detections", T0 + 15, impala_msgs.RadarDetections(
-            4, np.array([T0, T0 + 1]), np.array([3, 9]), np.array([0.25, -1.0]), np.array([12.5, 40.0]),
-            np.array([1.5, np.nan]), np.array([7.0, 9.0]), np.array([0.9, np.nan])))
-        w.write("tracker/tracks", T0 + 16, impala_msgs.ObjectStates(
-            np.array([7, 123456789012]), np.array([[1.0, 2.0], [3.0, 4.0]]), np.array([[0.5, 0.0], [-1.0, 2.0]]),
-            np.stack([np.arange(16.0).reshape(4, 4), 2 * np.eye(4)])))
-        power = np.arange(12, dtype=np.float64).reshape(3, 4) * 1e3 + 0.125
-        w.write("radar/scan", T0 + 17, impala_msgs.RadarScan(4, np.array([T0 + 3, T0 + 4, T0 + 5]),
-                                                               np.array([0.0, 0.1, 0.2]), power, np.zeros((0, 0)),
-                                                               CONFIG))
-        for turn, index, t in [(0, 0, 100), (0, 1, 101), (0, 2, 102), (1, 0, 200), (1, 1, 201), (2, 0, 300)]:
-            w.write("radar/beams", T0 + t, _beam(turn, index, [turn, index, 0.5, 1e6]))
-        w.write("odo/speed", T0 + 18, impala_msgs.Speed(2.0))
-        assert w.foreign_summary()["ros2"]["not written (no ROS 2 message for the type)"] == {"odo/speed": "Speed"}
-    return path
+    return write_every_type(tmp_path_factory.mktemp("ros2") / "all.mcap")
 
 
 def test_every_ros2_channel_has_a_ros2msg_schema_cdr_and_is_a_mirror_beside_the_native_ones(written: Path) -> None:
@@ -197,8 +145,7 @@ def test_scans_and_turns_of_beams_as_32fc1_bscans(written: Path) -> None:
     (_, _, img), = ros["/radar/scan"]
     assert (img.height, img.width, img.encoding, img.step, img.is_bigendian) == (3, 4, "32FC1", 16, 0)
     assert ns(img.header.stamp) == T0 + 3 and img.header.frame_id == "radar"  # the turn's first beam
-    power = np.arange(12, dtype=np.float64).reshape(3, 4) * 1e3 + 0.125
-    assert np.array_equal(np.frombuffer(bytes(img.data), dtype="<f4").reshape(3, 4), power.astype(np.float32))
+    assert np.array_equal(np.frombuffer(bytes(img.data), dtype="<f4").reshape(3, 4), SCAN_POWER.astype(np.float32))
     beams = ros["/radar/beams"]  # 3 turns: two complete, the last one written when the file closes
     assert [(t, ns(m.header.stamp), m.height, m.width) for t, _, m in beams] == [
         (T0 + 102, T0 + 100, 3, 4), (T0 + 201, T0 + 200, 2, 4), (T0 + 300, T0 + 300, 1, 4)]
@@ -208,7 +155,7 @@ def test_scans_and_turns_of_beams_as_32fc1_bscans(written: Path) -> None:
 
 def test_only_writes_a_ros2_file_without_native_channels_or_mirrors(tmp_path: Path) -> None:
     path = tmp_path / "only.mcap"
-    with MissionWriter(path, codecs=_codecs(), foreign=("ros2",), native=False, foxglove=True,
+    with MissionWriter(path, codecs=codecs(), foreign=("ros2",), native=False, foxglove=True,
                        json_views=True) as w:
         w.add_topic("slam/pose", msgs.Pose2D, "vehicle")
         w.add_topic("odo/speed", impala_msgs.Speed)
@@ -226,7 +173,7 @@ def test_only_writes_a_ros2_file_without_native_channels_or_mirrors(tmp_path: Pa
 def test_a_path_keeps_its_newest_poses_within_its_bound(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(ros2_writer, "PATH_MAX_POSES", 4)
     path = tmp_path / "p.mcap"
-    with MissionWriter(path, codecs=_codecs(), foreign=("ros2",), native=False) as w:
+    with MissionWriter(path, codecs=codecs(), foreign=("ros2",), native=False) as w:
         w.add_topic("p", msgs.Pose2D)
         for i in range(10):
             w.write("p", T0 + i, msgs.Pose2D(float(i), 0.0, 0.0))
