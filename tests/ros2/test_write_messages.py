@@ -197,3 +197,15 @@ def test_asking_for_ros2_without_the_plugin_is_one_line_with_the_pip_line(
         MissionWriter(tmp_path / "y.mcap", codecs=run_codecs(load_registry()), foreign=("ros2",))
     assert str(e.value) == ("ros2 output unavailable: plugin 'ros2' needs mcap_ros2_is_not_installed: "
                             "pip install 'impala-flow[ros2]'")
+
+
+@pytest.mark.parametrize("frame", ["", "m", "map", "odom", "odom_x", "a_longer_frame"])
+def test_a_path_assembled_from_poses_encoded_once_is_the_bytes_the_encoder_writes_for_the_whole(frame: str) -> None:
+    from impala_ros2.write import convert
+
+    ch = ros2_writer._channel("/p/path", "nav_msgs/Path")
+    poses = [convert.pose_stamped(T0 + i, frame[: i % (len(frame) + 1)], 0.1 * i, -i, 0.3 * i) for i in range(7)]
+    for n in range(len(poses) + 1):
+        msg = convert.path(T0, frame, poses[:n])
+        parts = [enc.element("geometry_msgs/PoseStamped", p) for p in poses[:n]]
+        assert enc.encode_with_elements(ch, convert.path(T0, frame, []), parts) == enc.encode(ch, msg)

@@ -17,9 +17,9 @@ from typing import Any
 
 from mcap_ros2._dynamic import serialize_dynamic
 
-from ..msgdefs import schema_name, schema_text
+from ..msgdefs import SEPARATOR, schema_name, schema_text, short_name
 
-__all__ = ["schema", "encode", "encode_with_tail"]
+__all__ = ["schema", "encode", "encode_with_tail", "element", "encode_with_elements"]
 
 
 @cache
@@ -44,3 +44,39 @@ def encode_with_tail(channel: Any, message: dict[str, Any], tail: bytes) -> byte
     if head[-4:] != b"\0\0\0\0":
         raise ValueError(f"{channel.schema_name}: the message does not end with an empty array")
     return head[:-4] + struct.pack("<I", len(tail)) + tail
+
+
+@cache
+def _padded_encoder(ros_type: str) -> Callable[[Any], bytes]:
+    """The encoder of ``ros_type`` placed after a 4-byte field (a synthetic ``impala_ros2/Padded`` message)."""
+    short = short_name(ros_type)
+    text = f"uint32 pad\n{short} element\n{SEPARATOR}\nMSG: {short}\n{schema_text(short)}"
+    return serialize_dynamic("impala_ros2/Padded", text)["impala_ros2/Padded"]
+
+
+def element(ros_type: str, message: dict[str, Any]) -> tuple[bytes, bytes]:
+    """The CDR bytes of one ``ros_type`` message as a sequence element starting at offset 0 and at offset 4 modulo 8
+    (without the 4-byte encapsulation header)."""
+    name, data = schema(ros_type)
+    at0 = _encoder(name, data)(message)[4:]
+    at4 = _padded_encoder(ros_type)({"pad": 0, "element": message})[8:]
+    return at0, at4
+
+
+def encode_with_elements(channel: Any, message: dict[str, Any], elements: list[tuple[bytes, bytes]]) -> bytes:
+    """CDR bytes of ``message`` whose last field, a sequence of messages, holds ``elements`` (from :func:`element`;
+    ``message`` has it empty)."""
+    head = encode(channel, message)
+    if head[-4:] != b"\0\0\0\0":
+        raise ValueError(f"{channel.schema_name}: the message does not end with an empty sequence")
+    parts = [head[:-4], struct.pack("<I", len(elements))]
+    offset = len(head) - 4  # counted from the end of the encapsulation header
+    for at0, at4 in elements:
+        if offset % 4:
+            pad = 4 - offset % 4
+            parts.append(bytes(pad))
+            offset += pad
+        b = at0 if offset % 8 == 0 else at4
+        parts.append(b)
+        offset += len(b)
+    return b"".join(parts)

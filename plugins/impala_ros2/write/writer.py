@@ -25,7 +25,7 @@ from impala_flow import msgs
 from impala_flow.io import ForeignChannel
 
 from . import convert
-from .encode import encode, encode_with_tail, schema
+from .encode import element, encode, encode_with_elements, encode_with_tail, schema
 
 __all__ = ["Ros2Writer", "ros_topic", "PATH_MAX_POSES", "TURN_MAX_BYTES", "PROFILE"]
 
@@ -67,7 +67,7 @@ class Ros2Writer:
     def __init__(self) -> None:
         self._out: dict[str, list[ForeignChannel]] = {}
         self._child: dict[str, str] = {}
-        self._paths: dict[str, deque] = {}
+        self._paths: dict[str, deque] = {}  # topic -> its newest poses, CDR-encoded (encode.element)
         self._turns: dict[str, _Turn] = {}
         self._tf = _channel(TF_TOPIC, "tf2_msgs/TFMessage")
         self.written: dict[str, int] = {}
@@ -118,9 +118,9 @@ class Ros2Writer:
             p = value
             ps = c.pose_stamped(t_ns, p.frame, p.x_m, p.y_m, p.theta_rad)
             poses = self._paths[topic]
-            poses.append(ps)
+            poses.append(element("geometry_msgs/PoseStamped", ps))  # each pose encoded once, kept as bytes
             out = [self._msg(chans[0], t_ns, encode(chans[0], ps)),
-                   self._msg(chans[1], t_ns, encode(chans[1], c.path(t_ns, p.frame, list(poses))))]
+                   self._msg(chans[1], t_ns, encode_with_elements(chans[1], c.path(t_ns, p.frame, []), list(poses)))]
             if len(chans) > 2:
                 od = c.odometry(t_ns, p.frame, self._child[topic], p.x_m, p.y_m, p.theta_rad, p.cov_xyt)
                 out.append(self._msg(chans[2], t_ns, encode(chans[2], od)))
