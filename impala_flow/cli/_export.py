@@ -37,7 +37,7 @@ from ..io import MissionReader, RecordingError
 from ..msgs import is_message
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from ._info import codecs
-from .helpers import check_writable_file
+from .helpers import check_writable_file, loss_line, window
 
 #: arrays up to this many values become columns; larger ones need --npy
 SMALL_ARRAY = 16
@@ -162,18 +162,6 @@ def _rows(value: Any, npy: Any = None) -> list[dict[str, Any]]:
     return out
 
 
-def loss_line(r: MissionReader, topic: str) -> str | None:
-    losses = [loss for loss in r.losses if loss.topic in (topic, None)]
-    if not losses:
-        return None
-    n = sum(loss.count or 0 for loss in losses)
-    unknown = any(loss.count is None for loss in losses)
-    ranges = ", ".join(f"{loss.start_ns * 1e-9:.3f}..{loss.end_ns * 1e-9:.3f} s" for loss in losses)
-    what = f"{n}{'+' if unknown else ''} messages" if n else "an unknown number of messages"
-    return (f"{r.path}: {what} of {topic!r} lost in damaged chunks (t={ranges}); nothing exported "
-            "(--allow-loss exports the rest)")
-
-
 def _check_args(args: argparse.Namespace) -> None:
     """Usage errors before the recording is read (exit 2, one line): no format or two, a window that is not
     finite seconds, outputs that cannot be written or would land on the recording."""
@@ -206,14 +194,6 @@ def _check_args(args: argparse.Namespace) -> None:
         clash = why or output_clash(args.npy, inputs + ([(args.output, "the -o file")] if args.output else []))
         if clash:
             raise CommandError(f"--npy {args.npy}: {clash}", EXIT_USAGE)
-
-
-def window(r: MissionReader, args: argparse.Namespace) -> tuple[int | None, int | None]:
-    """--start-s / --end-s as int ns on the recording's clock (None: open)."""
-    t0 = r.info().start_ns or 0
-    lo = None if args.start_s is None else t0 + int(round(args.start_s * 1e9))
-    hi = None if args.end_s is None else t0 + int(round(args.end_s * 1e9))
-    return lo, hi
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,8 +19,8 @@ from typing import Any
 from ..io import VEHICLE_POSES, CodecError, MissionReader, MissionWriter, RecordingError
 from ..msgs import Pose2D
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
-from ._export import loss_line, window
 from ._info import codecs
+from .helpers import loss_line, window
 
 __all__ = ["export_ros2", "frame_children"]
 

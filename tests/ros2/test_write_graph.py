@@ -189,3 +189,24 @@ def test_export_ros2_of_a_damaged_recording_fails_unless_allow_loss_then_writes_
         readable = [(m.t_ns, m.data.x_m) for m in r.messages()]
     assert 0 < len(readable) < 600
     assert [(ns(m.header.stamp), m.pose.position.x) for _, _, m in ros_messages(out)["/gps/pose"]] == readable
+
+
+def test_a_graph_asking_for_ros2_without_the_plugin_is_refused_before_it_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    mission = _odometry_mission(tmp_path / "m.mcap")
+    graph = tmp_path / "g.yaml"
+    graph.write_text(yaml.safe_dump({
+        "components": {"mission": {"type": "io.Replayer", "params": {"path": str(mission)}},
+                       "deadreckoning": {"type": "slam.DeadReckoning"}},
+        "connections": ["mission.odo/speed -> deadreckoning.odometer", "mission.gyro/yaw_rate -> deadreckoning.gyro"],
+        "record": {"path": "out.mcap", "streams": ["deadreckoning.pose"], "ros2": "only"}}))
+    assert main(["validate", str(graph)]) == 0
+    capsys.readouterr()
+    monkeypatch.setenv(DISABLE_ENV, "ros2")
+    for command in ("validate", "run"):
+        assert main([command, str(graph), "--no-progress"] if command == "run" else [command, str(graph)]) == 2
+        err = capsys.readouterr().err
+        assert err.strip().splitlines()[-1].endswith(
+            "record: 'ros2': ros2 output unavailable: no plugin registers it (the 'ros2' plugin: "
+            "pip install 'impala-flow[ros2]')"), err
+    assert not (tmp_path / "out.mcap").exists()

@@ -209,3 +209,16 @@ def test_a_path_assembled_from_poses_encoded_once_is_the_bytes_the_encoder_write
         msg = convert.path(T0, frame, poses[:n])
         parts = [enc.element("geometry_msgs/PoseStamped", p) for p in poses[:n]]
         assert enc.encode_with_elements(ch, convert.path(T0, frame, []), parts) == enc.encode(ch, msg)
+
+
+def test_two_streams_on_one_ros_topic_is_an_error_naming_both(tmp_path: Path) -> None:
+    with MissionWriter(tmp_path / "c.mcap", codecs=codecs(), foreign=("ros2",)) as w:
+        w.add_topic("a.b", msgs.Twist2D)
+        with pytest.raises(ValueError, match="ROS 2 topic '/a_b' of stream 'a_b' is already written for 'a.b': "
+                                             "rename one of the streams"):
+            w.add_topic("a_b", msgs.Twist2D)
+        w.add_topic("p", msgs.Pose2D)
+        with pytest.raises(ValueError, match="ROS 2 topic '/p/path' of stream 'p/path' is already written for 'p'"):
+            w.add_topic("p/path", msgs.Trajectory2D)
+        with pytest.raises(ValueError, match="ROS 2 topic '/tf' of stream 'tf' is already written for the frame tree"):
+            w.add_topic("tf", msgs.Trajectory2D)

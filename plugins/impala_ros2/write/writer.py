@@ -70,6 +70,7 @@ class Ros2Writer:
         self._paths: dict[str, deque] = {}  # topic -> its newest poses, CDR-encoded (encode.element)
         self._turns: dict[str, _Turn] = {}
         self._tf = _channel(TF_TOPIC, "tf2_msgs/TFMessage")
+        self._owner: dict[str, str] = {TF_TOPIC: "the frame tree"}  # ROS topic -> the stream written on it
         self.written: dict[str, int] = {}
         self.skipped: dict[str, str] = {}  # topic -> its type, no ROS 2 message for it
         self.split_turns = 0
@@ -100,6 +101,11 @@ class Ros2Writer:
         else:
             self.skipped[topic] = getattr(py_type, "__name__", str(py_type))
             chans = []
+        for ch in chans:
+            other = self._owner.setdefault(ch.topic, repr(topic))
+            if other != repr(topic):
+                raise ValueError(f"ROS 2 topic {ch.topic!r} of stream {topic!r} is already written for "
+                                 f"{other}: rename one of the streams")
         self._out[topic] = chans
         return chans
 
