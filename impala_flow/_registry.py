@@ -86,6 +86,7 @@ class Registry:
         self.types: dict[str, type] = {}
         self.codecs: dict[str, Any] = {}
         self.mirrors: dict[Any, tuple[Any, str]] = {}  # type (or key) -> (mirror factory, plugin)
+        self.foreign_writers: dict[str, tuple[Any, str]] = {}  # output format -> (writer factory, plugin)
         #: name -> a plugin's way to make a mission recording (:meth:`add_mission_source`)
         self.mission_sources: dict[str, MissionSource] = {}
         self.owner: dict[str, str] = {}  # registered name -> plugin name
@@ -146,6 +147,15 @@ class Registry:
             raise RegistrationError(f"add_mirror expects a callable make(type) -> Mirror | None, got {make!r}")
         self._claim(_mirror_name(key))
         self.mirrors[key] = (make, self._current.name if self._current else "impala_flow")
+    def add_foreign_writer(self, name: str, make: Any) -> None:
+        """Register the output format ``name``: ``make()`` returns the writer of one recording, which
+        writes its streams again in another middleware's messages (the ros2 plugin: ``ros2``); see
+        :class:`impala_flow.io.ForeignWriter`."""
+        if not callable(make):
+            raise RegistrationError(f"add_foreign_writer expects a callable make() -> ForeignWriter, got {make!r}")
+        self._claim(f"format:{name}")
+        self.foreign_writers[name] = (make, self._current.name if self._current else "impala_flow")
+
     def add_mission_source(self, name: str, make: Callable[..., None], help: str = "") -> MissionSource:
         """Offer ``make(session, scenario, path, *, seed=None, duration_s=None)`` under ``name``
         (not prefixed, as a command): it writes one mission recording made from ``scenario``
@@ -172,6 +182,8 @@ class Registry:
                 self.codecs.pop(key[len("codec:"):], None)
             if key.startswith("mission:"):
                 self.mission_sources.pop(key[len("mission:"):], None)
+            if key.startswith("format:"):
+                self.foreign_writers.pop(key[len("format:"):], None)
         for key in [k for k, (_, owner) in self.mirrors.items() if owner == plugin]:
             del self.mirrors[key]
         self.plugins.pop(plugin, None)

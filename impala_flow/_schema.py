@@ -216,6 +216,9 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                 "compression": {"type": "string", "description": "chunk compression, e.g. zstd, lz4 or none"},
                 "foxglove": {"type": "boolean", "description":
                     "also write the mirrors plugins register (the view plugin: Foxglove well-known schemas)"},
+                "ros2": {"enum": ["", "beside", "only"], "description":
+                         "also write standard ROS 2 messages (the ros2 plugin): beside the native channels, "
+                         "or only them"},
                 "chunk_size": {"type": "integer", "minimum": 1024, "maximum": 1 << 28,
                                "description": "bytes per MCAP chunk"},
                 "flush_period_s": {"type": "number", "minimum": 0,

@@ -181,5 +181,10 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
             _, bad = registry.components[RECORDER_TYPE].validate_params(given)
             for k, msg in bad.items():
                 problems.append(Problem(spec.record_loc, f"record: '{k}': {msg}"))
+            if spec.record.get("ros2") and "ros2" not in registry.foreign_writers and "ros2" not in bad:
+                broken = registry.broken.get("ros2")
+                why = broken.needs or broken.describe() if broken else "no plugin registers it (the 'ros2' plugin: " \
+                    "pip install 'impala-flow[ros2]')"
+                problems.append(Problem(spec.record_loc, f"record: 'ros2': ros2 output unavailable: {why}"))
     problems += check_paths(spec, registry)
     return problems

@@ -1,4 +1,5 @@
-"""``impala-flow export FILE --topic T --csv``: one recorded stream as CSV, never silently lossy.
+"""``impala-flow export FILE --topic T --csv``: one recorded stream as CSV, never silently lossy
+(``--ros2 OUT.mcap``: the recording as standard ROS 2 messages, :mod:`._export_ros2`).
 
 Columns: ``t_ns``, then every scalar field (nested messages flattened as ``pose.x_m``).
 Arrays are never dropped:
@@ -36,7 +37,7 @@ from ..io import MissionReader, RecordingError
 from ..msgs import is_message
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from ._info import codecs
-from .helpers import check_writable_file
+from .helpers import check_writable_file, loss_line, window
 
 #: arrays up to this many values become columns; larger ones need --npy
 SMALL_ARRAY = 16
@@ -44,17 +45,28 @@ SMALL_ARRAY = 16
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "export", help="export a recorded stream (CSV)",
+        "export", help="export a recorded stream (CSV) or a recording as ROS 2 messages",
         description="Write one topic as CSV: a t_ns column, then one column per scalar field "
         "(nested messages flattened as pose.x_m). Messages holding N objects or poses (ObjectStates, "
         "Trajectory2D, Points2D) give N rows with their index; small arrays (a covariance) one column "
         "per value; large arrays (a Grid's data) are refused unless --npy DIR writes them as .npy "
-        "files. Lost messages (damaged chunks) fail the export unless --allow-loss.",
-        epilog="example: impala-flow export out/rslam.mcap --topic slam/pose --csv -o pose.csv",
+        "files. Or, with --ros2 OUT.mcap, write the recording (every topic, or --topic) as standard "
+        "ROS 2 messages (the ros2 plugin: poses as PoseStamped + Path + Odometry, /tf, maps as "
+        "OccupancyGrid, detections and tracks as radar_msgs, scans as Image; ros2msg schemas, CDR) "
+        "that `ros2 bag play` and Foxglove read; --native keeps the native channels beside them. "
+        "Lost messages (damaged chunks) fail the export unless --allow-loss.",
+        epilog="examples:\n  impala-flow export out/rslam.mcap --topic slam/pose --csv -o pose.csv\n"
+        "  impala-flow export out/rslam.mcap --ros2 out/rslam-ros2.mcap   # then: ros2 bag play out/rslam-ros2.mcap",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", metavar="FILE", help="MCAP recording")
-    p.add_argument("--topic", required=True, help="recorded topic, e.g. slam/pose")
-    p.add_argument("--csv", action="store_true", required=True, help="CSV output (the format)")
+    p.add_argument("--topic", help="recorded topic, e.g. slam/pose (required with --csv; with --ros2: only it)")
+    p.add_argument("--csv", action="store_true", help="CSV output of --topic")
+    p.add_argument("--ros2", metavar="OUT.mcap", default=None,
+                   help="write the recording as ROS 2 messages to OUT.mcap (replaced if it exists; needs the "
+                   "ros2 plugin)")
+    p.add_argument("--native", action="store_true",
+                   help="with --ros2: keep the native channels (and their Foxglove mirrors) beside the ROS 2 ones")
     p.add_argument("-o", "--output", metavar="OUT", help="output file (default: stdout)")
     p.add_argument("--start-s", type=float, default=None, help="seconds after the first sample")
     p.add_argument("--end-s", type=float, default=None, help="seconds after the first sample")
@@ -150,27 +162,28 @@ def _rows(value: Any, npy: Any = None) -> list[dict[str, Any]]:
     return out
 
 
-def _loss_line(r: MissionReader, topic: str) -> str | None:
-    losses = [loss for loss in r.losses if loss.topic in (topic, None)]
-    if not losses:
-        return None
-    n = sum(loss.count or 0 for loss in losses)
-    unknown = any(loss.count is None for loss in losses)
-    ranges = ", ".join(f"{loss.start_ns * 1e-9:.3f}..{loss.end_ns * 1e-9:.3f} s" for loss in losses)
-    what = f"{n}{'+' if unknown else ''} messages" if n else "an unknown number of messages"
-    return (f"{r.path}: {what} of {topic!r} lost in damaged chunks (t={ranges}); nothing exported "
-            "(--allow-loss exports the rest)")
-
-
 def _check_args(args: argparse.Namespace) -> None:
-    """Usage errors before the recording is read (exit 2, one line): a window that is not
+    """Usage errors before the recording is read (exit 2, one line): no format or two, a window that is not
     finite seconds, outputs that cannot be written or would land on the recording."""
+    if bool(args.csv) == bool(args.ros2):
+        raise CommandError("export: give one output format, --csv (with --topic) or --ros2 OUT.mcap", EXIT_USAGE)
+    if args.csv and not args.topic:
+        raise CommandError("export --csv: --topic is required (the topic written as CSV)", EXIT_USAGE)
+    if args.native and not args.ros2:
+        raise CommandError("export: --native goes with --ros2", EXIT_USAGE)
+    if args.ros2 and (args.output or args.npy):
+        raise CommandError("export --ros2: -o and --npy are CSV options (the ROS 2 file is --ros2's)", EXIT_USAGE)
     for option, value in (("--start-s", args.start_s), ("--end-s", args.end_s)):
         if value is not None and not (math.isfinite(value) and 0 <= value <= MAX_SECONDS):
             raise CommandError(f"{option} {value}: expected finite seconds in [0, {MAX_SECONDS:.3g}]", EXIT_USAGE)
     if args.start_s is not None and args.end_s is not None and args.end_s <= args.start_s:
         raise CommandError(f"--end-s {args.end_s} <= --start-s {args.start_s}: nothing to export", EXIT_USAGE)
     inputs = [(args.file, "the recording")]
+    if args.ros2:
+        check_writable_file(args.ros2, "--ros2")
+        clash = output_clash(args.ros2, inputs)
+        if clash:
+            raise CommandError(f"--ros2: {clash}", EXIT_USAGE)
     if args.output:
         check_writable_file(args.output, "-o")
         clash = output_clash(args.output, inputs)
@@ -185,15 +198,17 @@ def _check_args(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _check_args(args)
+    if args.ros2:
+        from ._export_ros2 import export_ros2
+
+        return export_ros2(args)
     npy_dir = Path(args.npy) if args.npy else None
     try:
         with MissionReader(args.file, codecs()) as r:
             if args.topic not in r.topics:
                 raise CommandError(f"{args.file}: no topic {args.topic!r} (recorded: "
                                    f"{', '.join(sorted(r.topics))})", EXIT_USAGE)
-            t0 = r.info().start_ns or 0
-            lo = None if args.start_s is None else t0 + int(round(args.start_s * 1e9))
-            hi = None if args.end_s is None else t0 + int(round(args.end_s * 1e9))
+            lo, hi = window(r, args)
             header: dict[str, None] = {}  # every column of every row, first seen first
             try:
                 for m in r.messages([args.topic], lo, hi):
@@ -201,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
                         header.update(dict.fromkeys(row))
             except ArrayTooLarge as e:
                 raise CommandError(f"{args.file}: topic {args.topic!r}: {e}", EXIT_FAILED) from None
-            loss = _loss_line(r, args.topic)
+            loss = loss_line(r, args.topic)
             if loss and not args.allow_loss:
                 raise CommandError(loss, EXIT_FAILED)
             n = _write(r, args, lo, hi, list(header), npy_dir)

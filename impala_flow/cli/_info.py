@@ -81,7 +81,8 @@ def format_info(info: RecordingInfo, metadata: bool = False) -> str:
     ]
     width = max((len(c.topic) for c in info.channels), default=5)
     for c in info.channels:
-        note = f" (Foxglove view of {c.mirror_of})" if c.mirror_of else (
+        view = "ROS 2" if c.message_encoding == "cdr" else "Foxglove"  # cdr: the ros2 plugin's output format
+        note = f" ({view} view of {c.mirror_of})" if c.mirror_of else (
             "" if c.decodable else " (no codec installed for this schema)")
         lines.append(f"  {c.topic:<{width}}  {c.count:>9}  {c.rate_hz:>9.2f} Hz  "
                      f"{c.schema} [{c.schema_encoding}]{note}")

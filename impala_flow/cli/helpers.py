@@ -20,10 +20,11 @@ from .._spec import GraphError, checked_speed
 from .._summary import ComponentError, RunSummary
 from .._validate import RECORDER_TYPE
 from .._yamlloc import YamlError, load_value
+from ..io import MissionReader
 from . import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CommandError
 
 __all__ = ["add_graph_args", "parse_vars", "open_session", "load_spec", "Progress", "run_network", "check_speed",
-           "check_writable_file", "check_output_over_inputs", "record_source"]
+           "check_writable_file", "check_output_over_inputs", "record_source", "window", "loss_line"]
 
 
 def add_graph_args(p: argparse.ArgumentParser) -> None:
@@ -207,3 +208,24 @@ def record_source(session: Session, source: Source, path: str, topics: dict[str,
     if not quiet:
         print(summary.format(), file=sys.stderr)
     return EXIT_INTERRUPTED if summary.interrupted else EXIT_OK
+
+
+def window(r: MissionReader, args: argparse.Namespace) -> tuple[int | None, int | None]:
+    """--start-s / --end-s as int ns on the recording's clock (None: open)."""
+    t0 = r.info().start_ns or 0
+    lo = None if args.start_s is None else t0 + int(round(args.start_s * 1e9))
+    hi = None if args.end_s is None else t0 + int(round(args.end_s * 1e9))
+    return lo, hi
+
+
+def loss_line(r: MissionReader, topic: str) -> str | None:
+    """One line saying what damaged chunks of ``r`` lost of ``topic`` (None: nothing), for ``export``."""
+    losses = [loss for loss in r.losses if loss.topic in (topic, None)]
+    if not losses:
+        return None
+    n = sum(loss.count or 0 for loss in losses)
+    unknown = any(loss.count is None for loss in losses)
+    ranges = ", ".join(f"{loss.start_ns * 1e-9:.3f}..{loss.end_ns * 1e-9:.3f} s" for loss in losses)
+    what = f"{n}{'+' if unknown else ''} messages" if n else "an unknown number of messages"
+    return (f"{r.path}: {what} of {topic!r} lost in damaged chunks (t={ranges}); nothing exported "
+            "(--allow-loss exports the rest)")

@@ -3,7 +3,8 @@
 - :class:`CodecRegistry`: codecs by Python type and by (schema name, version); one generic
   exact codec (:class:`MessageCodec`) serves every ``@message`` dataclass.
 - :class:`MissionWriter`: chunked, indexed MCAP with metadata and the mirrors plugins register
-  (:class:`Mirror`: e.g. the view plugin's Foxglove schemas).
+  (:class:`Mirror`: e.g. the view plugin's Foxglove schemas) and the foreign formats they register
+  (:class:`ForeignWriter`: e.g. the ros2 plugin's ROS 2 messages).
 - :class:`MissionReader`: any valid MCAP file; seek by time, stream chunk by chunk, recover
   cut or damaged files, count what a damaged chunk held (:class:`Loss`).
 - The engine's own components, YAML types ``io.Recorder`` (:class:`Recorder`) and ``io.Replayer``
@@ -24,6 +25,7 @@ from ._errors import (
     TruncatedRecordingError,
     UnknownSchemaError,
 )
+from ._foreign import ForeignChannel, ForeignWriter
 from ._jsonview import encode as encode_json
 from ._jsonview import json_schema, to_json
 from ._mirror import MIRROR_KEY, TRANSFORMS, Mirror
@@ -39,7 +41,7 @@ __all__ = [
     "MESSAGE_ENCODING", "MissionWriter", "COMPRESSIONS", "MissionReader", "RecordingInfo",
     "ChannelInfo", "Recorded", "Loss", "Mirror", "MIRROR_KEY", "TRANSFORMS", "to_json", "json_schema", "encode_json",
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
-    "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
+    "ForeignChannel", "ForeignWriter", "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
     "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs", "set_plugin_loader",
 ]

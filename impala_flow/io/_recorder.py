@@ -38,6 +38,10 @@ class Recorder(Component):
                      "frames on /tf)")
     json_views = Param(bool, default=True, doc="and every other stream through the fallback mirror (the view "
                        "plugin: as JSON there, for generic MCAP tools and Foxglove's Plot panel; needs foxglove)")
+    ros2 = Param(str, default="", choices=("", "beside", "only"),
+                 doc="also write the streams as standard ROS 2 messages (the ros2 plugin: PoseStamped, Path, Odometry, "
+                 "OccupancyGrid, radar_msgs, Image, /tf as tf2_msgs; ros2msg schemas, CDR): 'beside' the native "
+                 "channels, or 'only' them (a file `ros2 bag play` plays, without native channels or mirrors)")
     chunk_size = Param(int, default=1 << 20, ge=1024, le=1 << 28,
                        doc="bytes per chunk before compression (the writer holds at most one chunk)")
     maxsize = Param(int, default=4096, ge=1, le=1 << 16, doc="samples queued per input before blocking")
@@ -71,7 +75,8 @@ class Recorder(Component):
         Path(self.path).parent.mkdir(parents=True, exist_ok=True)
         self.writer = MissionWriter(self.path, codecs=self.codecs, flush_period_s=self.flush_period_s or None,
                                     compression=self.compression, chunk_size=self.chunk_size,
-                                    metadata=meta, foxglove=self.foxglove, json_views=self.json_views)
+                                    metadata=meta, foxglove=self.foxglove, json_views=self.json_views,
+                                    foreign=("ros2",) if self.ros2 else (), native=self.ros2 != "only")
         self.recorded: dict[str, int] = {}
         self._frames = self._frame_children()
         if len(self.radar_mount) != 4 or not all(isinstance(v, (int, float)) for v in self.radar_mount):
@@ -84,14 +89,14 @@ class Recorder(Component):
     def _add_topic(self, topic: str, t_data: type) -> None:
         if is_message(t_data) and t_data not in self.codecs:
             self.codecs.add_type(t_data, plugin=t_data.__module__.split(".")[0])
-        self.writer.add_topic(topic, t_data)
+        self.writer.add_topic(topic, t_data, self._frames.get(topic, ""))
         self.recorded[topic] = 0
 
     def _frame_children(self) -> dict[str, str]:
         """Pose topic -> frame it places on /tf (module param ``frames``)."""
         if self.frames:
             return {str(k): str(v) for k, v in self.frames.items()}
-        if not self.foxglove:
+        if not self.foxglove and not self.ros2:
             return {}
         poses = [t for t, port in self.inputs.items()
                  if any(src.decl.type is Pose2D for src in port.sources)]
@@ -134,5 +139,8 @@ class Recorder(Component):
 
     def summary(self) -> dict[str, Any]:
         n = sum(getattr(self, "recorded", {}).values())
-        return {"path": self.path, "recorded": n, "dropped": 0,
-                "topics": dict(getattr(self, "recorded", {}))}
+        out = {"path": self.path, "recorded": n, "dropped": 0, "topics": dict(getattr(self, "recorded", {}))}
+        writer = getattr(self, "writer", None)
+        if writer is not None and self.ros2:
+            out["ros2"] = writer.foreign_summary().get("ros2", {})
+        return out

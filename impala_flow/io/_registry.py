@@ -8,6 +8,7 @@ from typing import Any
 
 from ._codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
 from ._errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
+from ._foreign import ForeignWriter, ForeignWriterFactory
 from ._mirror import Mirror, MirrorFactory
 
 __all__ = ["CodecRegistry", "VERSION_KEY"]
@@ -32,6 +33,8 @@ class CodecRegistry:
         self._type_cache: dict[type, Codec | None] = {}
         self._mirrors: dict[Any, tuple[MirrorFactory, str]] = {}
         self._mirror_cache: dict[tuple[Any, bool], Mirror | None] = {}
+        self._foreign: dict[str, tuple[ForeignWriterFactory, str]] = {}
+        self._foreign_missing: dict[str, str] = {}  # format -> why its plugin is not loaded
         if builtins:
             for c in builtin_codecs():
                 self.add_codec(c, plugin=ENGINE)
@@ -66,6 +69,10 @@ class CodecRegistry:
                 reg.add_codec(codec, plugin=owner.get(f"codec:{name}", "?"))
         for key, (make, plugin) in getattr(plugins, "mirrors", {}).items():
             reg.add_mirror(key, make, plugin=plugin)
+        for name, (make, plugin) in getattr(plugins, "foreign_writers", {}).items():
+            reg.add_foreign_writer(name, make, plugin=plugin)
+        for name, broken in getattr(plugins, "broken", {}).items():
+            reg._foreign_missing[name] = broken.needs or broken.describe()
         return reg
 
     # --- registration ------------------------------------------------------------------
@@ -113,6 +120,25 @@ class CodecRegistry:
                                       f"and by plugin {plugin!r}")
         self._mirrors[key] = (make, plugin)
         self._mirror_cache.clear()
+
+    def add_foreign_writer(self, name: str, make: ForeignWriterFactory, plugin: str = "?") -> None:
+        """Register the output format ``name`` (``make()``: the writer of one recording); see
+        :mod:`impala_flow.io._foreign`."""
+        prev = self._foreign.get(name)
+        if prev is not None and prev[0] is not make:
+            raise SchemaConflictError(f"output format {name!r} registered twice: by plugin {prev[1]!r} "
+                                      f"and by plugin {plugin!r}")
+        self._foreign[name] = (make, plugin)
+
+    def foreign_writer(self, name: str) -> ForeignWriter:
+        """A new writer of output format ``name``, or CodecError saying which plugin would bring it
+        (the plugin named like the format, whose extra installs its libraries)."""
+        entry = self._foreign.get(name)
+        if entry is None:
+            why = self._foreign_missing.get(name) or (f"no plugin registers it (the '{name}' plugin: "
+                                                      f"pip install 'impala-flow[{name}]')")
+            raise CodecError(f"{name} output unavailable: {why}")
+        return entry[0]()
 
     def mirror_for(self, key: Any, fallback: bool = False) -> Mirror | None:
         """The mirror of values of type ``key`` (exact type), else with ``fallback`` the

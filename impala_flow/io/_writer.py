@@ -18,6 +18,7 @@ from typing import Any
 
 from ._codec import Codec
 from ._errors import CodecError
+from ._foreign import ForeignChannel, ForeignWriter
 from ._mcapwriter import McapWriter
 from ._mirror import FRAMES_MIRROR_OF, MIRROR_KEY, TRANSFORMS, Mirror
 from ._registry import VERSION_KEY, CodecRegistry
@@ -43,6 +44,10 @@ class _UnbufferedFile:
 
     def tell(self) -> int:
         return self._f.tell()
+
+    def foreign_summary(self) -> dict[str, dict[str, Any]]:
+        """Format -> what its writer wrote and could not write (counts)."""
+        return {fw.profile: fw.summary() for fw in self._foreign}
 
     def flush(self) -> None:
         return None
@@ -74,18 +79,31 @@ class MissionWriter:
     also written mirrored, and with ``json_views=True`` (the recorder's default) every other
     stream through the fallback mirror (the view plugin's: JSON there). Without mirrors
     registered, only the streams are written.
+
+    ``foreign`` names output formats plugins register (:mod:`impala_flow.io._foreign`; the ros2
+    plugin: ``ros2``, standard ROS 2 messages in CDR): every stream is also written in them, and
+    with ``native=False`` only in them (no native channel, no mirror: a file other tools play back
+    as it is, its header profile the format's). A format no plugin registers is a CodecError
+    naming the plugin and its pip line.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
                  compression: str = "zstd", chunk_size: int = 1 << 20,
                  metadata: dict[str, dict[str, str]] | None = None, foxglove: bool = True,
                  json_views: bool = False,
-                 flush_period_s: float | None = 1.0) -> None:
+                 flush_period_s: float | None = 1.0, foreign: tuple[str, ...] = (), native: bool = True) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}, "
                              f"not {compression!r}")
+        if not native and not foreign:
+            raise ValueError("native=False needs a foreign output format (nothing would be written)")
         self.path = os.fspath(path)
         self.codecs = codecs
+        self.native = native
+        self._foreign: list[ForeignWriter] = [codecs.foreign_writer(name) for name in foreign]
+        self._foreign_ids: dict[ForeignChannel, int] = {}
+        if not native:
+            foxglove = json_views = False
         self.compression = compression
         self.foxglove = foxglove
         self.json_views = json_views
@@ -97,7 +115,7 @@ class MissionWriter:
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
         self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
-        self._mcap.start(profile=PROFILE, library="impala-flow")
+        self._mcap.start(profile=PROFILE if native else self._foreign[0].profile, library="impala-flow")
         self._closed = False
         for name, data in (metadata or {}).items():
             self.add_metadata(name, data)
@@ -117,16 +135,22 @@ class MissionWriter:
             sid = self._schemas[key] = self._mcap.register_schema(name, encoding, data)
         return sid
 
-    def add_topic(self, topic: str, msg_type: type | None) -> None:
-        """Declare stream ``topic`` carrying values of ``msg_type`` (``None`` = NoneType)."""
+    def add_topic(self, topic: str, msg_type: type | None, child_frame: str = "") -> None:
+        """Declare stream ``topic`` carrying values of ``msg_type`` (``None`` = NoneType);
+        ``child_frame``: the frame its poses place on the frame tree (for the foreign formats)."""
         if topic in self._topics:
             raise ValueError(f"{self.path}: topic {topic!r} added twice")
         t = type(None) if msg_type is None else msg_type
         codec = self.codecs.for_type(t)
-        sid = self._schema_id(codec.schema_name, codec.schema_encoding, codec.schema_data())
-        cid = self._mcap.register_channel(
-            topic, codec.message_encoding, sid,
-            {VERSION_KEY: str(codec.schema_version)})
+        cid = 0
+        if self.native:
+            sid = self._schema_id(codec.schema_name, codec.schema_encoding, codec.schema_data())
+            cid = self._mcap.register_channel(
+                topic, codec.message_encoding, sid,
+                {VERSION_KEY: str(codec.schema_version)})
+        for fw in self._foreign:
+            for ch in fw.add_topic(topic, t, child_frame):
+                self._foreign_channel(ch, topic)
         mirror = self.codecs.mirror_for(t, self.json_views) if self.foxglove else None
         mid = 0
         if mirror is not None:
@@ -136,6 +160,21 @@ class MissionWriter:
         strict = codec.py_type is t and hasattr(t, "__impala_schema__")
         self._topics[topic] = _Topic(cid, codec, codec.py_type, strict, mirror, mid,
                                      getattr(codec, "encode_parts", None))
+
+    def _foreign_channel(self, ch: ForeignChannel, of: str) -> int:
+        """The channel id of a foreign writer's channel, registered when first seen."""
+        cid = self._foreign_ids.get(ch)
+        if cid is None:
+            sid = self._schema_id(ch.schema_name, ch.schema_encoding, ch.schema_data)
+            meta = dict(ch.metadata)
+            if self.native:  # beside the streams: impala-flow's readers skip it as a mirror
+                meta[MIRROR_KEY] = of
+            cid = self._foreign_ids[ch] = self._mcap.register_channel(ch.topic, ch.message_encoding, sid, meta)
+        return cid
+
+    def _write_foreign(self, messages: Any, of: str) -> None:
+        for ch, t_ns, payload in messages:
+            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], len(payload), 0)
 
     @property
     def topics(self) -> dict[str, type]:
@@ -159,12 +198,15 @@ class MissionWriter:
                              f"got {type(data).__name__}")
         if t_ns < 0:
             raise ValueError(f"topic {topic!r}: negative timestamp {t_ns} ns")
-        parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
-        size = 0
-        for p in parts:
-            size += len(p) if type(p) is bytes else memoryview(p).nbytes
         seq &= 0xFFFFFFFF
-        self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
+        if self.native:
+            parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
+            size = 0
+            for p in parts:
+                size += len(p) if type(p) is bytes else memoryview(p).nbytes
+            self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
+        for fw in self._foreign:
+            self._write_foreign(fw.write(topic, t_ns, data), topic)
         if tp.mirror is not None:
             pb = tp.mirror.convert(data, t_ns)
             self._mcap.add_message(tp.mirror_id, t_ns, [pb], len(pb), seq)
@@ -178,7 +220,12 @@ class MissionWriter:
         """Write planar frame transforms (parent, child, x, y, z, yaw) through the frame-tree
         mirror of ``codecs`` (key :data:`~impala_flow.io.TRANSFORMS`; the view plugin's:
         ``foxglove.FrameTransforms`` on ``/tf``); readers skip it like the other mirrors. Without
-        that mirror registered, nothing is written."""
+        that mirror registered, nothing is written. A foreign writer with a frame tree (ROS 2's
+        ``/tf``) writes it instead of the mirror."""
+        for fw in self._foreign:
+            self._write_foreign(fw.write_transforms(t_ns, transforms), FRAMES_MIRROR_OF)
+        if any(fw.frames for fw in self._foreign) or not self.foxglove:
+            return
         if self._tf is None:
             tf = self.codecs.mirror_for(TRANSFORMS)
             if tf is None:
@@ -189,6 +236,10 @@ class MissionWriter:
             self._tf = tf
         pb = self._tf.convert(transforms, t_ns)
         self._mcap.add_message(self._tf_id, t_ns, [pb], len(pb), 0)
+
+    def foreign_summary(self) -> dict[str, dict[str, Any]]:
+        """Format -> what its writer wrote and could not write (counts)."""
+        return {fw.profile: fw.summary() for fw in self._foreign}
 
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress
@@ -202,6 +253,8 @@ class MissionWriter:
             return
         self._closed = True
         try:
+            for fw in self._foreign:
+                self._write_foreign(fw.finish(), "")
             self._mcap.finish()
         finally:
             self._file.close()
