@@ -242,7 +242,9 @@ def _add_navtech_server(sub: argparse._SubParsersAction) -> None:
                    "only; 0.0.0.0 serves the network)")
     p.add_argument("--port", type=int, default=6317, help="TCP port (default 6317, Navtech's; 0: a free port, "
                    "printed)")
-    p.add_argument("--speed", type=float, default=1.0, help="pace as a multiple of real time (default 1)")
+    p.add_argument("--speed", type=float, default=1.0,
+                   help="pace as a multiple of real time (default 1): a radar turning X times faster, its clock at "
+                   "real time (device times compressed by X, rotation rate x X)")
     p.add_argument("--loop", action="store_true", help="restart the recording at its end (device times run on)")
     p.add_argument("--jitter-ms", type=float, default=0.0, metavar="J",
                    help="delay each send by a random 0..J ms (network jitter; the device stamps are unchanged)")

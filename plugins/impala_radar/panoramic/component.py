@@ -80,11 +80,12 @@ class PanoramicBuilder(Component):
     Motion during the turn, first available of: the ``odometer`` and ``gyro`` histories
     over the turn; the last estimated ``twist`` (e.g. ``slam.twist`` through a delayed
     connection: the velocity of the previous estimates, for a radar without odometry);
-    the constant ``speed_mps`` / ``yaw_rate_radps``. A turn imaged with a twist older than
-    the previous image (live, a SLAM still busy with the previous turn when this one closed)
-    is counted as ``stale_twist``: offline the previous turn's estimate is always back first,
-    so a live run and its replay image the same turns the same way exactly when the live count
-    is no larger than the replay's. Bootstrap: with ``twist`` connected
+    the constant ``speed_mps`` / ``yaw_rate_radps``. A turn imaged, ``twist`` connected, without
+    a twist of the previous image or later (live, a SLAM still busy with the previous turn when
+    this one closed; or no estimate came for it) is counted as ``stale_twist``: offline the
+    previous turn's estimate, if any, is always back first, so a live run and its replay image
+    the same turns the same way exactly when the live count is no larger than the replay's.
+    Bootstrap: with ``twist`` connected
     and no odometry, nothing is known of the motion before the first estimate, and an
     uncorrected first image would stay in a SLAM's map (a Navtech at 8 m/s moves 2 m in a
     turn). So the first turn is held until the second one is complete; the displacement
@@ -195,8 +196,11 @@ class PanoramicBuilder(Component):
             else:
                 out.append(np.full(len(t_ns), const))
                 sources.append("constant")
-        if "twist" in sources and self._t_image is not None and self.twist.latest().timestamp < self._t_image:
-            self.stale_twist += 1  # the estimate of the previous turn was not back yet (live)
+        if (self.twist.connected and self._t_image is not None and self.odometer.name not in sources
+                and self.gyro.name not in sources):  # the motion comes from the fed-back estimate, if any
+            last = self.twist.latest()
+            if last is None or last.timestamp < self._t_image:
+                self.stale_twist += 1  # the estimate of the previous turn was not back (live), or none came
         key = "+".join(dict.fromkeys(sources))
         self.motion_source[key] = self.motion_source.get(key, 0) + 1
         return out[0], out[1]
