@@ -81,7 +81,8 @@ def test_live_poses_follow_the_ground_truth(live_run):
     mapping slews while it settles, tens of ms on a loaded machine) gives it back on the radar's
     clock, near the ground truth's stamp of that scan. Checked up to the first turn R-SLAM's input
     dropped (a loaded machine; counted): without the turn between, its constant-velocity
-    prediction may not reach the next one. graphs/oxford.yaml's pair errors offline are 7 cm per turn on average, 0.3 m/s at 4 Hz; live,
+    prediction may not reach the next one. graphs/oxford.yaml's pair errors offline are 7 cm per
+    turn on average, 0.3 m/s at 4 Hz; live,
     on a loaded machine, a turn may be imaged with an older twist (stale_twist) and R-SLAM's first
     turns follow the bootstrap: 0.5 m/s (6 % of the 8 m/s driven) at the median, 1 m/s at most."""
     out, summary, _ = live_run
