@@ -6,10 +6,13 @@
   (:class:`Mirror`: e.g. the view plugin's Foxglove schemas).
 - :class:`MissionReader`: any valid MCAP file; seek by time, stream chunk by chunk, recover
   cut or damaged files, count what a damaged chunk held (:class:`Loss`).
+- Channel adapters (:class:`ChannelAdapter`): plugins read foreign channels (a rosbag2's ROS 2
+  messages) as the project's samples; the reader, ``info``, ``export`` and the Replayer use them.
 - The engine's own components, YAML types ``io.Recorder`` (:class:`Recorder`) and ``io.Replayer``
   (:class:`Replayer`): record streams of a graph, replay a recording as a source.
 """
 
+from ._adapter import ANY_SCHEMA, AdapterContext, ChannelAdapter, ForeignChannel
 from ._codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
 from ._errors import (
     BadMagicError,
@@ -41,5 +44,6 @@ __all__ = [
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
+    "ChannelAdapter", "ForeignChannel", "AdapterContext", "ANY_SCHEMA",
     "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs", "set_plugin_loader",
 ]

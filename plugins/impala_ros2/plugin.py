@@ -1,0 +1,26 @@
+"""Entry point of the ros2 plugin: adapters reading ROS 2 channels, the ``import ros2`` command."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from impala_flow.plugins import hookimpl, require
+
+#: the libraries of this plugin's extra (pip install 'impala-flow[ros2]'), checked before any hook runs
+REQUIRES = ("mcap_ros2",)
+
+
+@hookimpl
+def impala_flow_register(registry: Any) -> None:
+    require(*REQUIRES)
+    from .read.adapters import register_adapters
+
+    register_adapters(registry)
+
+
+@hookimpl(trylast=True)  # after the plugin that may own `import` (radar): `ros2` joins its formats
+def impala_flow_add_commands(subparsers: Any) -> None:
+    require(*REQUIRES)
+    from .command import add_import_ros2
+
+    add_import_ros2(subparsers)
