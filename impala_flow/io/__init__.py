@@ -13,6 +13,7 @@
 """
 
 from ._adapter import ANY_SCHEMA, AdapterContext, ChannelAdapter, ForeignChannel
+from ._bag import BagReader, open_recording
 from ._codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
 from ._errors import (
     BadMagicError,
@@ -44,6 +45,6 @@ __all__ = [
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
-    "ChannelAdapter", "ForeignChannel", "AdapterContext", "ANY_SCHEMA",
+    "ChannelAdapter", "ForeignChannel", "AdapterContext", "ANY_SCHEMA", "BagReader", "open_recording",
     "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs", "set_plugin_loader",
 ]

@@ -7,7 +7,8 @@ adapter). The run's :class:`~impala_flow.io.CodecRegistry` carries it to the
 :class:`~impala_flow.io.MissionReader`, which reads a channel with no native codec through its
 adapter: every message (payload bytes, log time) becomes zero or more ``(t_ns, sample)``, each
 with its own time (one ROS image of a radar turn becomes hundreds of beams). The reader puts
-them in time order through a bounded reordering window; a sample still earlier than what was
+them in time order through a bounded reordering window (an adapter may hold samples back until
+the next message, and give them from an optional ``finish()`` at the end); a sample still earlier than what was
 already given is dropped and counted (:attr:`MissionReader.late`), never silently.
 
 A factory that cannot read the channel raises ``ValueError`` with one line (e.g. a schema
@@ -65,6 +66,9 @@ class ChannelAdapter(Protocol):
     def notes(self) -> list[str]:
         """One line each: how the samples were made (times spread, geometry from where), what was dropped."""
         ...
+
+    # optional: ``finish() -> Iterable[(t_ns, value)]``, the samples an adapter held back (e.g. a radar turn waiting
+    # for the next turn's stamp to spread its beams up to it), asked for when the reading ends
 
 
 #: builds the adapter of one channel (ValueError: refused, with one line saying why)

@@ -333,25 +333,44 @@ class MissionReader:
     # --- messages --------------------------------------------------------------------------
 
     def messages(self, topics: Iterable[str] | None = None, start_ns: int | None = None,
-                 end_ns: int | None = None, *, raw: bool = False) -> Iterator[Recorded]:
+                 end_ns: int | None = None, *, raw: bool = False, finish: bool = True) -> Iterator[Recorded]:
         """Samples with ``start_ns <= t_ns < end_ns`` in (t_ns, file order) order.
 
         ``topics=None`` reads every channel a codec reads (channels of unknown schema are
         skipped and listed in :attr:`undecodable`; Foxglove mirrors are skipped); naming a
         topic whose schema is unknown raises UnknownSchemaError. ``raw=True`` yields the
         payload bytes undecoded. Only the chunks overlapping the time range are read. The
-        messages of a damaged chunk are skipped and counted in :attr:`losses`.
+        messages of a damaged chunk are skipped and counted in :attr:`losses`. Channel adapters
+        holding samples back (``finish()``: a turn waits for the next one's stamp) give them at the
+        end, unless ``finish`` is False (a part of a split recording that more parts follow).
         """
+        merged, wanted = self._records(topics, start_ns, end_ns, raw)
+        if any(hasattr(d, "adapt") for _, d in wanted.values()):
+            return self._reorder(self._finish(merged, wanted) if finish else merged)
+        return merged
+
+    def _records(self, topics: Iterable[str] | None, start_ns: int | None, end_ns: int | None,
+                 raw: bool) -> tuple[Iterator[Recorded], dict[int, tuple[str, Any]]]:
+        """The chunks' messages merged by log time (adapted ones not yet in order), and the channels read."""
         wanted = self._select(topics, raw)
         refs = [r for r in self._map.chunks
                 if (start_ns is None or r.end_ns >= start_ns)
                 and (end_ns is None or r.start_ns < end_ns)
                 and (r.channel_ids is None or not r.channel_ids.isdisjoint(wanted))]
         refs.sort(key=lambda r: (r.start_ns, r.offset))
-        merged = self._merge(refs, wanted, start_ns, end_ns)
-        if any(hasattr(d, "adapt") for _, d in wanted.values()):
-            return self._reorder(merged)
-        return merged
+        return self._merge(refs, wanted, start_ns, end_ns), wanted
+
+    def _finish(self, records: Iterator[Recorded], wanted: dict[int, tuple[str, Any]]) -> Iterator[Recorded]:
+        """``records``, then what each adapter still holds (its ``finish()``)."""
+        last = None
+        for r in records:
+            last = r.t_ns
+            yield r
+        for topic, d in wanted.values():
+            if hasattr(d, "finish"):
+                samples = list(d.finish())
+                if samples:
+                    yield Recorded(topic, last if last is not None else samples[0][0], _Adapted(samples), 0)
 
     def _reorder(self, records: Iterator[Recorded]) -> Iterator[Recorded]:
         """Adapted samples (each with its own time) and native ones in time order: held in a heap

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from .._component import Component, Input, Output, Param, Source
+from ._bag import BagReader, open_recording
 from ._errors import UnknownSchemaError
 from ._reader import MissionReader
 from ._runcodecs import run_codecs
@@ -20,7 +21,7 @@ log = logging.getLogger(__name__)
 TIME_JUMP = "time_jump"
 
 
-def _select(reader: MissionReader, streams: list[str], rename: dict[str, str]) -> dict[str, str]:
+def _select(reader: MissionReader | BagReader, streams: list[str], rename: dict[str, str]) -> dict[str, str]:
     """Recorded topic -> output port, for the decodable topics matching ``streams``."""
     recorded = list(reader.topics)
     chosen: list[str] = []
@@ -70,7 +71,7 @@ class Replayer(Source):
     (``adapted``). A ``start_s`` past the end of the recording is refused when the run starts.
     """
 
-    path = Param(str, path="read", doc="MCAP recording")
+    path = Param(str, path="read", doc="MCAP recording, or a rosbag2 folder of split MCAP files")
     streams = Param(list, default=[], doc="topics to replay (glob patterns); empty = all")
     rename = Param(dict, default={}, doc="recorded topic -> output port name")
     start_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to start at")
@@ -85,14 +86,14 @@ class Replayer(Source):
         start, end = params.get("start_s", 0.0), params.get("end_s", 0.0)
         if end > 0 and end <= start:  # checked at validation: the graph never starts
             raise ValueError(f"end_s {end} <= start_s {start}: nothing would be replayed")
-        with MissionReader(params["path"], run_codecs(), adapter_params=params.get("adapter_params") or {}) as r:
+        with open_recording(params["path"], run_codecs(), adapter_params=params.get("adapter_params") or {}) as r:
             ports = _select(r, params["streams"], params["rename"])
             outs = {p: Output(r.topic_type(t), doc=f"recorded topic {t}")
                     for t, p in ports.items()}
         outs[TIME_JUMP] = Output(int, doc="loop offset (int ns) added to mission time")
         return {}, outs
 
-    def _window(self, r: MissionReader) -> tuple[int | None, int | None]:
+    def _window(self, r: MissionReader | BagReader) -> tuple[int | None, int | None]:
         info = r.info()
         if info.start_ns is None:
             return None, None
@@ -103,7 +104,7 @@ class Replayer(Source):
         return lo, hi
 
     def start(self) -> None:
-        self.reader = MissionReader(self.path, run_codecs(self.registry), adapter_params=self.adapter_params)
+        self.reader = open_recording(self.path, run_codecs(self.registry), adapter_params=self.adapter_params)
         self.ports = _select(self.reader, self.streams, self.rename)
         info = self.reader.info()
         if info.truncated:
@@ -159,7 +160,7 @@ class Replayer(Source):
 
     def duration_hint_ns(self) -> int | None:
         try:
-            with MissionReader(self.path, run_codecs()) as r:
+            with open_recording(self.path, run_codecs(), adapter_params=self.adapter_params) as r:
                 lo, hi = self._window(r)
                 end = r.info().end_ns
         except Exception:  # noqa: BLE001 - only a hint

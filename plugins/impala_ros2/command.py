@@ -110,7 +110,7 @@ def _pick(topics: dict[str, str], types: tuple[str, ...], asked: str | None, wha
 
 
 def import_ros2(args: argparse.Namespace) -> int:
-    from impala_flow.io import MissionReader, RecordingError, Replayer, run_codecs
+    from impala_flow.io import RecordingError, Replayer, open_recording, run_codecs
 
     bag, out = str(args.folder), str(args.output)
     if not os.path.exists(bag):
@@ -127,7 +127,7 @@ def import_ros2(args: argparse.Namespace) -> int:
         raise CommandError(f"--config {e}", EXIT_USAGE) from None
     session = open_session()
     try:
-        with MissionReader(bag, run_codecs(session.registry), adapter_params=params) as r:
+        with open_recording(bag, run_codecs(session.registry), adapter_params=params) as r:
             topics = r.topics
     except RecordingError as e:
         raise CommandError(str(e), EXIT_FAILED) from None

@@ -49,9 +49,14 @@ def oxford_scans(folder: Path) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def oxford_truth(folder: Path) -> list[tuple[int, float, float, float]]:
-    """(t_ns, x, y, yaw) in ROS's frame (y left, yaw counter-clockwise), chained from the CSV's relative poses."""
+    """(t_ns, x, y, yaw) in ROS's frame (y left, yaw counter-clockwise), chained from the CSV's relative poses of
+    the sample's scans (the rows whose source_radar_timestamp is one of radar/<us>.png's names: the CSV covers the
+    whole drive)."""
+    scans = {int(p.stem) for p in (folder / "radar").glob("*.png")}
     with open(folder / "gt" / "radar_odometry.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = [r for r in csv.DictReader(f) if min(scans) <= int(r["source_radar_timestamp"]) <= max(scans)]
+    rows.sort(key=lambda r: int(r["source_timestamp"]))
+    assert all(a["source_timestamp"] == b["destination_timestamp"] for a, b in zip(rows, rows[1:], strict=False))
     x = y = th = 0.0
     out = [(int(rows[0]["destination_timestamp"]) * 1000, x, y, th)]
     for r in rows:
@@ -67,10 +72,16 @@ def _schema(writer: Writer, name: str):
 
 
 def write_oxford_bag(folder: Path, path: Path, *, configuration: bool = True, truth: bool = True,
-                     fft: bool = False, chunk_size: int = 1024 * 1024, range_resolution_m: float = 0.0438) -> dict:
-    """Write ``path`` (or, given a list of paths, split the turns over them like rosbag2's split bags); returns
-    what was written (counts)."""
+                     fft: bool = False, chunk_size: int = 1024 * 1024, range_resolution_m: float = 0.0438,
+                     turns: range | None = None) -> dict:
+    """Write ``path``: every scan, or the ``turns`` (scan indices) of one part of a split bag (the truth of those
+    turns' time span); returns what was written (counts)."""
     scans = oxford_scans(folder)
+    span = None
+    if turns is not None:
+        chosen = [scans[k] for k in turns]
+        span = (int(chosen[0][0][0]), int(scans[turns.stop][0][0]) if turns.stop < len(scans) else None)
+        scans = chosen
     writer = Writer(str(path), chunk_size=chunk_size, compression=CompressionType.ZSTD)
     image = _schema(writer, "sensor_msgs/Image")
     counts = {"images": 0, "fft": 0, "truth": 0, "configuration": 0}
@@ -95,6 +106,8 @@ def write_oxford_bag(folder: Path, path: Path, *, configuration: bool = True, tr
                 events.append((int(t_ns[i]), 1, "fft", (int(t_ns[i]), int(encoder[i]), power[i])))
     if truth:
         for t, x, y, th in oxford_truth(folder):
+            if span is not None and (t < span[0] or (span[1] is not None and t >= span[1])):
+                continue
             events.append((t, 2, "truth", (t, x, y, th)))
     events.sort(key=lambda e: (e[0], e[1]))
     fft_schema = _schema(writer, "messages/RadarFftDataMessage") if fft else None
