@@ -144,3 +144,30 @@ def write_oxford_bag(folder: Path, path: Path, *, configuration: bool = True, tr
             counts["truth"] += 1
     writer.finish()
     return counts
+
+
+def write_radiate_bag(folder: Path, path: Path) -> int:
+    """RADIATE ``Navtech_Polar/<frame>.png`` (8-bit, rows = range bins, columns = the turn's azimuths, column j at
+    ``j / N`` of a turn) and ``Navtech_Polar.txt`` (``Frame: 000001 Time: <s>.<ns>``, the time of column 0) as
+    Navtech B-scan images (transposed: a row per azimuth), stamped at the frame's time, logged a turn later; no
+    configuration message (the geometry comes from options). Returns the images written."""
+    writer = Writer(str(path))
+    image = _schema(writer, "sensor_msgs/Image")
+    n = 0
+    for line in (folder / "Navtech_Polar.txt").read_text().splitlines():
+        parts = line.split()
+        if len(parts) < 4:
+            continue
+        png = folder / "Navtech_Polar" / f"{parts[1]}.png"
+        if not png.is_file():
+            continue
+        sec, _, frac = parts[3].partition(".")
+        t = int(sec) * 1_000_000_000 + int(frac)  # RADIATE writes the nanoseconds as an integer
+        data = np.ascontiguousarray(cv2.imread(str(png), cv2.IMREAD_GRAYSCALE).T)
+        writer.write_message(BSCAN_TOPIC, image, {
+            "header": {"stamp": _stamp(t), "frame_id": "radar"}, "height": data.shape[0], "width": data.shape[1],
+            "encoding": "mono8", "is_bigendian": 0, "step": data.shape[1], "data": data.tobytes()},
+            log_time=t + 250_000_000, publish_time=t + 250_000_000)
+        n += 1
+    writer.finish()
+    return n

@@ -11,10 +11,10 @@ import's: azimuth counter-clockwise from the heading, ``wrap(offset - a)`` for t
 B-scan image: one per turn, row i = azimuth ``i / height`` of a turn (Navtech's B-scan publisher fills row
 ``encoder / (encoder_size / azimuth_samples)``), width = range bins; encodings 8UC1/mono8 (counts) and 16UC1/mono16
 (count = value / 256, the 8-bit scale with fractions). The message has one stamp: the turn's first azimuth, and the
-per-azimuth times are lost, so beam i is stamped ``stamp + round(i x interval / height)``, the turn spread evenly up
-to the next turn's stamp (its interval: the adapter holds a turn until the next arrives), or over the rotation
-period ``1 / rotation_hz`` for the last turn and a turn before a gap (an interval outside 0.5-1.5 periods); said in
-the notes. FFT data: one message per azimuth, with its encoder count and
+per-azimuth times are lost, so beam i is stamped ``stamp + round(i x span / height)``, the turn spread evenly over
+the rotation period ``span = 1 / rotation_hz``, never past the next turn's stamp (``span`` = the interval when it is
+shorter but at least half a period: the adapter holds a turn until the next arrives), as the direct RADIATE import
+spreads its columns; said in the notes. FFT data: one message per azimuth, with its encoder count and
 the radar's own time (``ntp_seconds``, ``ntp_split_seconds``): beams keep their exact times and azimuths.
 """
 
@@ -182,7 +182,7 @@ class BScanAdapter(_Radar):
     def __init__(self, channel: ForeignChannel, context: AdapterContext) -> None:
         super().__init__(channel, context)
         self.pending: tuple[int, np.ndarray] | None = None
-        self.spread_nominal = 0
+        self.shortened = 0
 
     def _counts(self, m: Any) -> np.ndarray:
         dtype = self.ENCODINGS.get(m.encoding)
@@ -209,7 +209,8 @@ class BScanAdapter(_Radar):
         g["n_bins"] = int(m.width)
         self.g, self.config = g, self._config(g)
         self._notes.append("beam times: the image's stamp is the turn's first azimuth; per-azimuth times are not "
-                           "in the message: spread evenly from it to the next turn's stamp")
+                           f"in the message: spread evenly over the rotation period (1/{g['rotation_hz']:g} s), never "
+                           "past the next turn's stamp")
 
     def adapt(self, payload: memoryview, log_time_ns: int) -> list[tuple[int, impala_msgs.RadarBeam]]:
         """The beams of the turn before this one, spread up to this turn's stamp (this one waits for the next)."""
@@ -231,18 +232,17 @@ class BScanAdapter(_Radar):
         return self._beams(None) if self.pending is not None else []
 
     def _beams(self, next_ns: int | None) -> list[tuple[int, impala_msgs.RadarBeam]]:
-        """The pending turn's beams over [its stamp, the next turn's): the interval itself when it is a turn
-        (0.5 to 1.5 rotation periods), else (a gap, the last turn) the rotation period."""
+        """The pending turn's beams over the rotation period from its stamp, never past the next turn's stamp
+        (an interval shorter than the period but at least half of it: the turn ends there)."""
         assert self.pending is not None and self.config is not None
         t0, counts = self.pending
         self.pending = None
         self.turn += 1
         n = counts.shape[0]
         period_ns = 1e9 / self.g["rotation_hz"]
-        if next_ns is not None and 0.5 * period_ns <= next_ns - t0 <= 1.5 * period_ns:
+        if next_ns is not None and 0.5 * period_ns <= next_ns - t0 < period_ns:
             period_ns = float(next_ns - t0)
-        else:
-            self.spread_nominal += 1
+            self.shortened += 1
         azimuth = self._azimuth(np.arange(n) / n, self.g)
         power = counts_to_power(counts, self.g["db_per_count"])
         cfg, turn = self.config, self.turn
@@ -251,8 +251,8 @@ class BScanAdapter(_Radar):
                 for i in range(n)]
 
     def notes(self) -> list[str]:
-        extra = [f"{self.spread_nominal} turn(s) (the last, and any before a gap) spread over the rotation period"] \
-            if self.spread_nominal else []
+        extra = [f"{self.shortened} turn(s) whose next stamp came before a rotation period: spread up to it"] \
+            if self.shortened else []
         return [*self._notes, *extra]
 
 
