@@ -1,10 +1,9 @@
-"""The ROS 2 tests need mcap-ros2-support (the ros2 extra) and the ros2 plugin installed."""
+"""The ROS 2 tests need mcap-ros2-support (the ros2 extra) and the ros2 plugin installed: each module skips
+without the library (``pytest.importorskip`` first), each test without the plugin (``ros2_codecs``)."""
 
 from __future__ import annotations
 
 import pytest
-
-pytest.importorskip("mcap_ros2", reason="the ros2 extra (mcap-ros2-support) is not installed")
 
 
 @pytest.fixture(scope="session")

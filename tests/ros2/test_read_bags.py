@@ -4,22 +4,25 @@ damaged chunk (its images counted as lost, as for any recording), and the non-ra
 
 from __future__ import annotations
 
-import math
-import struct
-
-import numpy as np
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import Writer as McapWriter
-from mcap_ros2.writer import Writer
 
-from impala_flow.cli import main
-from impala_flow.io import MissionReader, Replayer, UnknownSchemaError
-from impala_flow.testing import run_components
-from impala_ros2 import msgdefs
+pytest.importorskip("mcap_ros2", reason="the ros2 extra (mcap-ros2-support) is not installed")
 
-from ..datasets import oxford_sample_or_skip
-from .bags import BSCAN_TOPIC, write_oxford_bag
+import math  # noqa: E402
+import struct  # noqa: E402
+
+import numpy as np  # noqa: E402
+from mcap.reader import make_reader  # noqa: E402
+from mcap.writer import Writer as McapWriter  # noqa: E402
+from mcap_ros2.writer import Writer  # noqa: E402
+
+from impala_flow.cli import main  # noqa: E402
+from impala_flow.io import MissionReader, Replayer, UnknownSchemaError  # noqa: E402
+from impala_flow.testing import run_components  # noqa: E402
+from impala_ros2 import msgdefs  # noqa: E402
+
+from ..datasets import oxford_sample_or_skip  # noqa: E402
+from .bags import BSCAN_TOPIC, write_oxford_bag  # noqa: E402
 
 T0 = 1_700_000_000_000_000_000
 

@@ -5,16 +5,18 @@ publishes them (one B-scan image per turn stamped at its first azimuth: the per-
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import pytest
 
-from impala_flow.cli import main
+pytest.importorskip("mcap_ros2", reason="the ros2 extra (mcap-ros2-support) is not installed")
 
-from ..datasets import oxford_sample_or_skip
-from .bags import write_oxford_bag
-from .test_read_radar import BSCAN_OFFSET_DEG
+import json  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from impala_flow.cli import main  # noqa: E402
+
+from ..datasets import oxford_sample_or_skip  # noqa: E402
+from .bags import write_oxford_bag  # noqa: E402
+from .test_read_radar import BSCAN_OFFSET_DEG  # noqa: E402
 
 GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "oxford.yaml"
 

@@ -4,17 +4,20 @@ ros2 plugin's adapters, against the direct Oxford import of the same scans."""
 
 from __future__ import annotations
 
-import math
-from pathlib import Path
-
-import numpy as np
 import pytest
 
-from impala_flow.cli import main
-from impala_flow.io import MissionReader, open_recording
+pytest.importorskip("mcap_ros2", reason="the ros2 extra (mcap-ros2-support) is not installed")
 
-from ..datasets import oxford_sample_or_skip, radiate_head_or_skip
-from .bags import BSCAN_TOPIC, ENCODER_SIZE, FFT_TOPIC, oxford_scans, write_oxford_bag, write_radiate_bag
+import math  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from impala_flow.cli import main  # noqa: E402
+from impala_flow.io import MissionReader, open_recording  # noqa: E402
+
+from ..datasets import oxford_sample_or_skip, radiate_head_or_skip  # noqa: E402
+from .bags import BSCAN_TOPIC, ENCODER_SIZE, FFT_TOPIC, oxford_scans, write_oxford_bag, write_radiate_bag  # noqa: E402
 
 #: Navtech's B-scan puts encoder e on row e // 14; Oxford's rows are at 13 + 14 i: row i is 13/5600 of a turn
 #: before its encoder angle, and the direct import's -0.95 deg offset applies to the encoder angle
