@@ -48,7 +48,8 @@ def bag_files(folder: str | os.PathLike[str]) -> list[Path]:
     else:
         files = sorted(root.glob("*.mcap"))
     if not files:
-        raise RecordingError(str(root), "a folder with no .mcap file (nor a rosbag2 metadata.yaml listing some)")
+        raise RecordingError(str(root), "a directory with no .mcap file (nor a rosbag2 metadata.yaml listing "
+                                        "some): not a recording")
     return files
 
 
