@@ -87,6 +87,8 @@ class Registry:
         self.codecs: dict[str, Any] = {}
         self.mirrors: dict[Any, tuple[Any, str]] = {}  # type (or key) -> (mirror factory, plugin)
         self.foreign_writers: dict[str, tuple[Any, str]] = {}  # output format -> (writer factory, plugin)
+        #: (schema encoding, schema name, message encoding) -> (adapter factory, plugin)
+        self.channel_adapters: dict[tuple[str, str, str], tuple[Any, str]] = {}
         #: name -> a plugin's way to make a mission recording (:meth:`add_mission_source`)
         self.mission_sources: dict[str, MissionSource] = {}
         self.owner: dict[str, str] = {}  # registered name -> plugin name
@@ -147,6 +149,7 @@ class Registry:
             raise RegistrationError(f"add_mirror expects a callable make(type) -> Mirror | None, got {make!r}")
         self._claim(_mirror_name(key))
         self.mirrors[key] = (make, self._current.name if self._current else "impala_flow")
+
     def add_foreign_writer(self, name: str, make: Any) -> None:
         """Register the output format ``name``: ``make()`` returns the writer of one recording, which
         writes its streams again in another middleware's messages (the ros2 plugin: ``ros2``); see
@@ -155,6 +158,18 @@ class Registry:
             raise RegistrationError(f"add_foreign_writer expects a callable make() -> ForeignWriter, got {make!r}")
         self._claim(f"format:{name}")
         self.foreign_writers[name] = (make, self._current.name if self._current else "impala_flow")
+
+    def add_channel_adapter(self, schema_encoding: str, schema_name: str, message_encoding: str,
+                            make: Any) -> None:
+        """Register ``make(channel, context) -> adapter``, which reads the recorded channels of that
+        (schema encoding, schema name, message encoding) -- a foreign encoding, e.g. a rosbag2's
+        ``ros2msg``/``cdr`` -- as the project's samples (schema name ``"*"``: every schema of those
+        encodings without its own); see :mod:`impala_flow.io._adapter`."""
+        if not callable(make):
+            raise RegistrationError(f"add_channel_adapter expects a callable make(channel, context), got {make!r}")
+        key = (schema_encoding, schema_name, message_encoding)
+        self._claim(f"adapter:{'/'.join(key)}")
+        self.channel_adapters[key] = (make, self._current.name if self._current else "impala_flow")
 
     def add_mission_source(self, name: str, make: Callable[..., None], help: str = "") -> MissionSource:
         """Offer ``make(session, scenario, path, *, seed=None, duration_s=None)`` under ``name``
@@ -186,6 +201,8 @@ class Registry:
                 self.foreign_writers.pop(key[len("format:"):], None)
         for key in [k for k, (_, owner) in self.mirrors.items() if owner == plugin]:
             del self.mirrors[key]
+        for akey in [k for k, (_, owner) in self.channel_adapters.items() if owner == plugin]:
+            del self.channel_adapters[akey]
         self.plugins.pop(plugin, None)
 
     def why_unknown(self, type_name: str) -> str | None:

@@ -325,7 +325,8 @@ def test_importing_the_engine_loads_no_plugin() -> None:
         import impala_flow, impala_flow.plugins, impala_flow._session, impala_flow.testing, impala_flow.cli
         loaded = sorted(m for m in sys.modules
                         if m.split(".")[0] in {"impala_flow_example", "impala_radar", "impala_view",
-                                               "impala_slam", "impala_tracking", "impala_eval", "impala_sweep"})
+                                               "impala_slam", "impala_tracking", "impala_eval", "impala_sweep",
+                                               "impala_ros2"})
         at_import = len(built)
         from impala_flow._session import Session
         Session()

@@ -33,7 +33,7 @@ import numpy as np
 
 from .._component import MAX_SECONDS
 from .._paths import not_writable, output_clash
-from ..io import MissionReader, RecordingError
+from ..io import MissionReader, RecordingError, open_recording
 from ..msgs import is_message
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from ._info import codecs
@@ -204,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         return export_ros2(args)
     npy_dir = Path(args.npy) if args.npy else None
     try:
-        with MissionReader(args.file, codecs()) as r:
+        with open_recording(args.file, codecs()) as r:
             if args.topic not in r.topics:
                 raise CommandError(f"{args.file}: no topic {args.topic!r} (recorded: "
                                    f"{', '.join(sorted(r.topics))})", EXIT_USAGE)

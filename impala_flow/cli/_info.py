@@ -8,7 +8,7 @@ import datetime
 import json
 from dataclasses import asdict
 
-from ..io import CodecRegistry, MissionReader, RecordingError, RecordingInfo
+from ..io import CodecRegistry, RecordingError, RecordingInfo, open_recording
 from . import EXIT_FAILED, CommandError
 
 
@@ -102,7 +102,7 @@ def format_info(info: RecordingInfo, metadata: bool = False) -> str:
 
 def run(args: argparse.Namespace) -> int:
     try:
-        with MissionReader(args.file, codecs()) as r:
+        with open_recording(args.file, codecs()) as r:
             if args.verify:
                 problems = r.verify()
                 info = dataclasses.replace(r.info(), problems=tuple(problems))

@@ -9,7 +9,7 @@ from .._session import Session
 from .._spec import GraphError
 from .._summary import RunSummary
 from .._yamlloc import YamlError
-from ..io import MissionReader, RecordingError
+from ..io import RecordingError, open_recording
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from .helpers import (
     add_graph_args,
@@ -53,7 +53,7 @@ def replayer_ids(graph_path: str, variables: dict | None = None) -> list[str]:
 def check_recording(path: str) -> None:
     """One line, exit 1, when FILE is not a readable recording (before the graph is built)."""
     try:
-        with MissionReader(path):
+        with open_recording(path):  # a file, or a rosbag2 folder of split files
             pass
     except RecordingError as e:
         raise CommandError(str(e), EXIT_FAILED) from None

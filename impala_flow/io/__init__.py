@@ -7,10 +7,14 @@
   (:class:`ForeignWriter`: e.g. the ros2 plugin's ROS 2 messages).
 - :class:`MissionReader`: any valid MCAP file; seek by time, stream chunk by chunk, recover
   cut or damaged files, count what a damaged chunk held (:class:`Loss`).
+- Channel adapters (:class:`ChannelAdapter`): plugins read foreign channels (a rosbag2's ROS 2
+  messages) as the project's samples; the reader, ``info``, ``export`` and the Replayer use them.
 - The engine's own components, YAML types ``io.Recorder`` (:class:`Recorder`) and ``io.Replayer``
   (:class:`Replayer`): record streams of a graph, replay a recording as a source.
 """
 
+from ._adapter import ANY_SCHEMA, AdaptedChannel, AdapterContext, ChannelAdapter
+from ._bag import BagReader, open_recording
 from ._codec import MESSAGE_ENCODING, SCHEMA_ENCODING, BuiltinCodec, Codec, MessageCodec
 from ._errors import (
     BadMagicError,
@@ -43,5 +47,6 @@ __all__ = [
     "CodecError", "SchemaConflictError", "UnknownSchemaError", "SchemaMismatchError",
     "ForeignChannel", "ForeignWriter", "RecordingError", "EmptyFileError", "NotMcapError", "BadMagicError",
     "TruncatedRecordingError", "CorruptChunkError", "CorruptSummaryError",
+    "ChannelAdapter", "AdaptedChannel", "AdapterContext", "ANY_SCHEMA", "BagReader", "open_recording",
     "Recorder", "Replayer", "TIME_JUMP", "VEHICLE_POSES", "run_codecs", "set_plugin_loader",
 ]

@@ -31,11 +31,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import _mcapfile as mf
-from ._codec import Codec
+from ._adapter import AdapterContext, ChannelAdapter, AdaptedChannel
+from ._codec import SCHEMA_ENCODING, Codec
 from ._errors import (
     CodecError,
     CorruptChunkError,
     RecordingError,
+    SchemaMismatchError,
     TruncatedRecordingError,
     UnknownSchemaError,
 )
@@ -45,6 +47,19 @@ from ._registry import CodecRegistry
 __all__ = ["MissionReader", "RecordingInfo", "ChannelInfo", "Recorded", "Loss"]
 
 log = logging.getLogger(__name__)
+
+#: how much earlier than its message's log time an adapted sample may be and still come in time order
+#: (a rosbag2 logs a radar turn when it is complete: its beams are up to a turn earlier)
+REORDER_WINDOW_S = 2.0
+#: samples held at most while putting adapted samples in order (beyond: the earliest are given)
+REORDER_MAX_SAMPLES = 200_000
+
+
+@dataclass(frozen=True)
+class _Adapted:
+    """The samples a channel adapter made of one message: ``((t_ns, value), ...)``."""
+
+    samples: list[tuple[int, Any]]
 
 
 class Recorded(NamedTuple):
@@ -134,8 +149,14 @@ class MissionReader:
     """
 
     def __init__(self, path: str | os.PathLike[str], codecs: CodecRegistry | None = None, *,
-                 strict: bool = False) -> None:
+                 strict: bool = False, adapter_params: dict[str, Any] | None = None,
+                 reorder_window_s: float = REORDER_WINDOW_S) -> None:
         self.path = os.fspath(path)
+        #: options given to every channel adapter (:mod:`impala_flow.io._adapter`)
+        self.adapter_params = dict(adapter_params or {})
+        self._window_ns = int(round(reorder_window_s * 1e9))
+        #: topic -> adapted samples dropped for coming later than the reordering window allows
+        self.late: dict[str, int] = {}
         self.codecs = codecs if codecs is not None else CodecRegistry.with_standard_types()
         self.strict = strict
         try:
@@ -155,7 +176,7 @@ class MissionReader:
         except BaseException:
             self._f.close()
             raise
-        self._codecs: dict[int, Codec | UnknownSchemaError] = {}
+        self._codecs: dict[int, Codec | ChannelAdapter | UnknownSchemaError] = {}
         self.undecodable: dict[str, UnknownSchemaError] = {}
         self.losses: list[Loss] = []  # messages of damaged chunks met so far (each once)
         self._lost_keys: set[tuple[int, int | None]] = set()
@@ -192,7 +213,7 @@ class MissionReader:
 
     # --- description -----------------------------------------------------------------------
 
-    def _codec(self, cid: int) -> Codec | UnknownSchemaError:
+    def _codec(self, cid: int) -> Codec | ChannelAdapter | UnknownSchemaError:
         c = self._codecs.get(cid)
         if c is None:
             ch = self._map.channels[cid]
@@ -200,12 +221,49 @@ class MissionReader:
             try:
                 if s is None:
                     raise UnknownSchemaError(ch.topic, "<no schema>", None)
-                c = self.codecs.for_channel(ch.topic, s.name, s.encoding, s.data,
-                                            ch.message_encoding, ch.metadata)
+                make = self.codecs.adapter_for(s.encoding, s.name, ch.message_encoding)
+                if make is not None:
+                    c = self._adapter(make, self._foreign(cid))
+                else:
+                    c = self.codecs.for_channel(ch.topic, s.name, s.encoding, s.data,
+                                                ch.message_encoding, ch.metadata)
             except UnknownSchemaError as e:
                 c = e
+                if s is not None and s.encoding != SCHEMA_ENCODING and self.codecs.missing_plugins \
+                        and not isinstance(e, SchemaMismatchError):
+                    c = UnknownSchemaError(ch.topic, s.name, None, f"{s.encoding!r} schema, "
+                                           f"{ch.message_encoding!r} messages: no codec nor channel adapter; "
+                                           + "; ".join(self.codecs.missing_plugins))
             self._codecs[cid] = c
         return c
+
+    def _foreign(self, cid: int) -> AdaptedChannel:
+        ch = self._map.channels[cid]
+        s = self._map.schemas.get(ch.schema_id)
+        return AdaptedChannel(ch.topic, s.name if s else "", s.encoding if s else "", bytes(s.data) if s else b"",
+                              ch.message_encoding, dict(ch.metadata))
+
+    def _adapter(self, make: Any, channel: AdaptedChannel) -> ChannelAdapter:
+        def head(topic: str, n: int) -> list[tuple[bytes, int]]:
+            return [(m.data, m.t_ns) for _, m in zip(range(n), self.messages([topic], raw=True), strict=False)]
+
+        context = AdapterContext(self.path, tuple(self._foreign(cid) for cid in sorted(self._map.channels)),
+                                 head, self.adapter_params)
+        try:
+            return make(channel, context)
+        except ValueError as e:
+            raise UnknownSchemaError(channel.topic, channel.schema_name, None, str(e)) from None
+
+    def adapters(self) -> dict[str, ChannelAdapter]:
+        """Topic -> the adapter reading it, for the channels read through one so far."""
+        return {self._map.channels[cid].topic: c for cid, c in self._codecs.items()
+                if hasattr(c, "adapt")}
+
+    def skipped_counts(self) -> dict[str, int]:
+        """Topic -> messages of the channels no codec or adapter reads (skipped when reading every topic)."""
+        counts = self._map.counts if self._verified is None else self._verified
+        return {ch.topic: counts.get(cid, 0) for cid, ch in sorted(self._map.channels.items())
+                if MIRROR_KEY not in ch.metadata and isinstance(self._codec(cid), UnknownSchemaError)}
 
     @property
     def topics(self) -> dict[str, str]:
@@ -222,7 +280,7 @@ class MissionReader:
         c = self._codec(self._channel_id(topic))
         if isinstance(c, UnknownSchemaError):
             raise c
-        return getattr(c, "value_type", c.py_type)  # an older version's codec decodes to the current type
+        return getattr(c, "value_type", None) or c.py_type  # type: ignore[union-attr]  # an older version's codec decodes to the current type
 
     def _channel_id(self, topic: str) -> int:
         for cid, ch in self._map.channels.items():
@@ -275,22 +333,69 @@ class MissionReader:
     # --- messages --------------------------------------------------------------------------
 
     def messages(self, topics: Iterable[str] | None = None, start_ns: int | None = None,
-                 end_ns: int | None = None, *, raw: bool = False) -> Iterator[Recorded]:
+                 end_ns: int | None = None, *, raw: bool = False, finish: bool = True) -> Iterator[Recorded]:
         """Samples with ``start_ns <= t_ns < end_ns`` in (t_ns, file order) order.
 
         ``topics=None`` reads every channel a codec reads (channels of unknown schema are
         skipped and listed in :attr:`undecodable`; Foxglove mirrors are skipped); naming a
         topic whose schema is unknown raises UnknownSchemaError. ``raw=True`` yields the
         payload bytes undecoded. Only the chunks overlapping the time range are read. The
-        messages of a damaged chunk are skipped and counted in :attr:`losses`.
+        messages of a damaged chunk are skipped and counted in :attr:`losses`. Channel adapters
+        holding samples back (``finish()``: a turn waits for the next one's stamp) give them at the
+        end, unless ``finish`` is False (a part of a split recording that more parts follow).
         """
+        merged, wanted = self._records(topics, start_ns, end_ns, raw)
+        if any(hasattr(d, "adapt") for _, d in wanted.values()):
+            return self._reorder(self._finish(merged, wanted) if finish else merged)
+        return merged
+
+    def _records(self, topics: Iterable[str] | None, start_ns: int | None, end_ns: int | None,
+                 raw: bool) -> tuple[Iterator[Recorded], dict[int, tuple[str, Any]]]:
+        """The chunks' messages merged by log time (adapted ones not yet in order), and the channels read."""
         wanted = self._select(topics, raw)
         refs = [r for r in self._map.chunks
                 if (start_ns is None or r.end_ns >= start_ns)
                 and (end_ns is None or r.start_ns < end_ns)
                 and (r.channel_ids is None or not r.channel_ids.isdisjoint(wanted))]
         refs.sort(key=lambda r: (r.start_ns, r.offset))
-        return self._merge(refs, wanted, start_ns, end_ns)
+        return self._merge(refs, wanted, start_ns, end_ns), wanted
+
+    def _finish(self, records: Iterator[Recorded], wanted: dict[int, tuple[str, Any]]) -> Iterator[Recorded]:
+        """``records``, then what each adapter still holds (its ``finish()``)."""
+        last = None
+        for r in records:
+            last = r.t_ns
+            yield r
+        for topic, d in wanted.values():
+            if hasattr(d, "finish"):
+                samples = list(d.finish())
+                if samples:
+                    yield Recorded(topic, last if last is not None else samples[0][0], _Adapted(samples), 0)
+
+    def _reorder(self, records: Iterator[Recorded]) -> Iterator[Recorded]:
+        """Adapted samples (each with its own time) and native ones in time order: held in a heap
+        until the log time has passed them by the reordering window (at most
+        :data:`REORDER_MAX_SAMPLES` held); one still earlier than a sample given is dropped and
+        counted in :attr:`late`."""
+        heap: list[tuple[int, int, str, Any, int]] = []
+        n, last = 0, None
+        push, pop = heapq.heappush, heapq.heappop
+        for r in records:
+            entries = r.data.samples if isinstance(r.data, _Adapted) else ((r.t_ns, r.data),)
+            for t, v in entries:
+                if last is not None and t < last:
+                    self.late[r.topic] = self.late.get(r.topic, 0) + 1
+                    continue
+                push(heap, (t, n, r.topic, v, r.seq))
+                n += 1
+            horizon = r.t_ns - self._window_ns
+            while heap and (heap[0][0] <= horizon or len(heap) > REORDER_MAX_SAMPLES):
+                t, _, topic, v, seq = pop(heap)
+                last = t
+                yield Recorded(topic, t, v, seq)
+        while heap:
+            t, _, topic, v, seq = pop(heap)
+            yield Recorded(topic, t, v, seq)
 
     def lost_counts(self) -> dict[str, int | None]:
         """Topic -> messages lost so far (None: some of unknown count); ``"?"``: losses
@@ -318,14 +423,14 @@ class MissionReader:
                         log.warning("%s: %s; channel skipped", self.path, c)
                     self.undecodable[ch.topic] = c
                 else:
-                    wanted[cid] = (ch.topic, c.decode)
+                    wanted[cid] = (ch.topic, c if hasattr(c, "adapt") else c.decode)
             return wanted
         for topic in [topics] if isinstance(topics, str) else topics:
             cid = self._channel_id(topic)
             c = self._codec(cid)
             if not raw and isinstance(c, UnknownSchemaError):
                 raise c
-            wanted[cid] = (topic, None if raw else c.decode)  # type: ignore[union-attr]
+            wanted[cid] = (topic, None if raw else c if hasattr(c, "adapt") else c.decode)  # type: ignore
         return wanted
 
     def _load(self, ref: mf.ChunkRef) -> memoryview | None:
@@ -381,7 +486,11 @@ class MissionReader:
         if decode is None:
             return Recorded(topic, t, bytes(payload), seq)
         try:
+            if hasattr(decode, "adapt"):  # a channel adapter: the message's samples, put in order by _reorder
+                return Recorded(topic, t, _Adapted(list(decode.adapt(payload, t))), seq)
             return Recorded(topic, t, decode(payload), seq)
+        except ValueError as e:
+            raise CodecError(f"{self.path}: topic {topic!r} at t={t} ns: {e}") from None
         except CodecError as e:
             raise CodecError(f"{self.path}: topic {topic!r} at t={t} ns: {e}") from None
 

@@ -6,6 +6,7 @@ import json
 from collections.abc import Iterator
 from typing import Any
 
+from ._adapter import ANY_SCHEMA, AdapterFactory
 from ._codec import SCHEMA_ENCODING, Codec, MessageCodec, UpgradingCodec, builtin_codecs
 from ._errors import CodecError, SchemaConflictError, SchemaMismatchError, UnknownSchemaError
 from ._foreign import ForeignWriter, ForeignWriterFactory
@@ -35,6 +36,10 @@ class CodecRegistry:
         self._mirror_cache: dict[tuple[Any, bool], Mirror | None] = {}
         self._foreign: dict[str, tuple[ForeignWriterFactory, str]] = {}
         self._foreign_missing: dict[str, str] = {}  # format -> why its plugin is not loaded
+        self._adapters: dict[tuple[str, str, str], tuple[AdapterFactory, str]] = {}
+        #: one line per plugin left out for a library it lacks ("plugin 'ros2' needs mcap_ros2: pip install ..."):
+        #: said when a channel no codec nor adapter reads may be one of theirs
+        self.missing_plugins: tuple[str, ...] = ()
         if builtins:
             for c in builtin_codecs():
                 self.add_codec(c, plugin=ENGINE)
@@ -73,6 +78,9 @@ class CodecRegistry:
             reg.add_foreign_writer(name, make, plugin=plugin)
         for name, broken in getattr(plugins, "broken", {}).items():
             reg._foreign_missing[name] = broken.needs or broken.describe()
+        for key, (make, plugin) in getattr(plugins, "channel_adapters", {}).items():
+            reg.add_channel_adapter(*key, make, plugin=plugin)
+        reg.missing_plugins = tuple(b.needs for b in getattr(plugins, "broken", {}).values() if b.missing)
         return reg
 
     # --- registration ------------------------------------------------------------------
@@ -139,6 +147,27 @@ class CodecRegistry:
                                                       f"pip install 'impala-flow[{name}]')")
             raise CodecError(f"{name} output unavailable: {why}")
         return entry[0]()
+    def add_channel_adapter(self, schema_encoding: str, schema_name: str, message_encoding: str,
+                            make: AdapterFactory, plugin: str = "?") -> None:
+        """Register the factory of the adapter reading channels of that key (schema name ``"*"``:
+        every schema of the encodings without its own); see :mod:`impala_flow.io._adapter`."""
+        key = (schema_encoding, schema_name, message_encoding)
+        prev = self._adapters.get(key)
+        if prev is not None and prev[0] is not make:
+            raise SchemaConflictError(f"channel adapter of {key} registered twice: by plugin {prev[1]!r} "
+                                      f"and by plugin {plugin!r}")
+        self._adapters[key] = (make, plugin)
+
+    def adapter_for(self, schema_encoding: str, schema_name: str, message_encoding: str) -> AdapterFactory | None:
+        """The adapter factory of a channel: its own schema's, else its encodings' ``"*"``, else None."""
+        entry = (self._adapters.get((schema_encoding, schema_name, message_encoding))
+                 or self._adapters.get((schema_encoding, ANY_SCHEMA, message_encoding)))
+        return None if entry is None else entry[0]
+
+    @property
+    def adapted_encodings(self) -> set[str]:
+        """Schema encodings some adapter reads."""
+        return {k[0] for k in self._adapters}
 
     def mirror_for(self, key: Any, fallback: bool = False) -> Mirror | None:
         """The mirror of values of type ``key`` (exact type), else with ``fallback`` the

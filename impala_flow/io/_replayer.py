@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from .._component import Component, Input, Output, Param, Source
+from ._bag import BagReader, open_recording
 from ._errors import UnknownSchemaError
 from ._reader import MissionReader
 from ._runcodecs import run_codecs
@@ -20,7 +21,7 @@ log = logging.getLogger(__name__)
 TIME_JUMP = "time_jump"
 
 
-def _select(reader: MissionReader, streams: list[str], rename: dict[str, str]) -> dict[str, str]:
+def _select(reader: MissionReader | BagReader, streams: list[str], rename: dict[str, str]) -> dict[str, str]:
     """Recorded topic -> output port, for the decodable topics matching ``streams``."""
     recorded = list(reader.topics)
     chosen: list[str] = []
@@ -63,30 +64,36 @@ class Replayer(Source):
     recording replays what it holds. Messages a damaged chunk held are never silent: they
     are counted per output (``summary()["lost"]``, from the file's message indexes) with the
     time ranges missing (``summary()["lost_ranges_s"]``, seconds from the first sample), and
-    logged as a warning. A ``start_s`` past the end of the recording is refused when the run starts.
+    logged as a warning. Foreign channels (a rosbag2's ROS 2 messages) are read through the channel
+    adapters plugins register (:mod:`impala_flow.io._adapter`), with ``adapter_params``; the summary
+    counts the messages of channels nothing reads (``skipped``, by topic), adapted samples dropped
+    for coming too late to be put in order (``late``) and says how adapters made their samples
+    (``adapted``). A ``start_s`` past the end of the recording is refused when the run starts.
     """
 
-    path = Param(str, path="read", doc="MCAP recording")
+    path = Param(str, path="read", doc="MCAP recording, or a rosbag2 folder of split MCAP files")
     streams = Param(list, default=[], doc="topics to replay (glob patterns); empty = all")
     rename = Param(dict, default={}, doc="recorded topic -> output port name")
     start_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to start at")
     end_s = Param(float, default=0.0, ge=0.0, doc="seconds after the first sample to stop at "
                                                    "(0 = the end)")
     loops = Param(int, default=1, ge=0, doc="number of passes (0 = forever)")
+    adapter_params = Param(dict, default={}, doc="options of the channel adapters reading foreign channels "
+                                                   "(a rosbag2's ROS 2 messages), e.g. range_resolution_m")
 
     @classmethod
     def declare_ports(cls, params: dict[str, Any]) -> tuple[dict[str, Input], dict[str, Output]]:
         start, end = params.get("start_s", 0.0), params.get("end_s", 0.0)
         if end > 0 and end <= start:  # checked at validation: the graph never starts
             raise ValueError(f"end_s {end} <= start_s {start}: nothing would be replayed")
-        with MissionReader(params["path"], run_codecs()) as r:
+        with open_recording(params["path"], run_codecs(), adapter_params=params.get("adapter_params") or {}) as r:
             ports = _select(r, params["streams"], params["rename"])
             outs = {p: Output(r.topic_type(t), doc=f"recorded topic {t}")
                     for t, p in ports.items()}
         outs[TIME_JUMP] = Output(int, doc="loop offset (int ns) added to mission time")
         return {}, outs
 
-    def _window(self, r: MissionReader) -> tuple[int | None, int | None]:
+    def _window(self, r: MissionReader | BagReader) -> tuple[int | None, int | None]:
         info = r.info()
         if info.start_ns is None:
             return None, None
@@ -97,7 +104,7 @@ class Replayer(Source):
         return lo, hi
 
     def start(self) -> None:
-        self.reader = MissionReader(self.path, run_codecs(self.registry))
+        self.reader = open_recording(self.path, run_codecs(self.registry), adapter_params=self.adapter_params)
         self.ports = _select(self.reader, self.streams, self.rename)
         info = self.reader.info()
         if info.truncated:
@@ -153,7 +160,7 @@ class Replayer(Source):
 
     def duration_hint_ns(self) -> int | None:
         try:
-            with MissionReader(self.path, run_codecs()) as r:
+            with open_recording(self.path, run_codecs(), adapter_params=self.adapter_params) as r:
                 lo, hi = self._window(r)
                 end = r.info().end_ns
         except Exception:  # noqa: BLE001 - only a hint
@@ -175,6 +182,16 @@ class Replayer(Source):
         out: dict[str, Any] = {"path": self.path, "replayed": getattr(self, "replayed", 0),
                                "loops": len(getattr(self, "jumps", [])) + 1}
         reader = getattr(self, "reader", None)
+        if reader is not None:
+            skipped = {t: n for t, n in reader.skipped_counts().items() if t not in self.ports}
+            if skipped:
+                out["skipped"] = skipped  # channels no codec nor adapter reads: messages not replayed
+            if reader.late:
+                out["late"] = {self.ports.get(t, t): n for t, n in reader.late.items()}
+            notes = {self.ports.get(t, t): a.notes() for t, a in reader.adapters().items()}
+            notes = {p: n for p, n in notes.items() if n}
+            if notes:
+                out["adapted"] = notes
         if reader is not None and reader.losses:
             t0 = reader.info().start_ns or 0
             out["lost"] = self.losses()

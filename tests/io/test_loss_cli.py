@@ -157,8 +157,14 @@ def test_replay_of_a_bad_file_exits_1_with_one_line(tmp_path: Path, capsys: pyte
     assert main(["replay", str(bad), str(_graph(tmp_path)), "--no-progress"]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and str(bad) in err and "not an MCAP file" in err
+    # a directory is a rosbag2 folder of split files: its bad part is named, one line; one holding none is refused
     assert main(["replay", str(tmp_path), str(_graph(tmp_path)), "--no-progress"]) == 1
-    assert "a directory" in capsys.readouterr().err
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and str(bad) in err and "not an MCAP file" in err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["replay", str(empty), str(_graph(tmp_path)), "--no-progress"]) == 1
+    assert "a directory with no .mcap file" in capsys.readouterr().err
 
 
 def test_replay_start_past_the_end_is_refused(mission: Path, tmp_path: Path,
