@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import _mcapfile as mf
-from ._adapter import AdapterContext, ChannelAdapter, AdaptedChannel
+from ._adapter import AdaptedChannel, AdapterContext, ChannelAdapter
 from ._codec import SCHEMA_ENCODING, Codec
 from ._errors import (
     CodecError,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from impala_flow.io import ANY_SCHEMA, AdapterContext, AdaptedChannel
+from impala_flow.io import ANY_SCHEMA, AdaptedChannel, AdapterContext
 
 from .. import msgdefs
 from .cdr import CDR, ROS2IDL, ROS2MSG

@@ -30,7 +30,7 @@ import numpy as np
 
 import impala_msgs
 from impala_flow import msgs
-from impala_flow.io import AdapterContext, AdaptedChannel
+from impala_flow.io import AdaptedChannel, AdapterContext
 
 from .cdr import decoder_of, stamp_ns, yaw_of
 from .params import check_params

@@ -28,7 +28,7 @@ import numpy as np
 
 import impala_msgs
 from impala_flow import msgs
-from impala_flow.io import AdapterContext, AdaptedChannel
+from impala_flow.io import AdaptedChannel, AdapterContext
 
 from .. import msgdefs
 from .cdr import decoder_of, stamp_ns
