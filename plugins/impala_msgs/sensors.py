@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import field
 
 import numpy as np
@@ -47,6 +48,23 @@ class RadarConfig:
     height_m: float = 1.3
     window: str = "hann"  # weighting before the FFT: "hann" (peaks ~4 bins wide) or "rect"
     range_offset_m: float = 0.0  # range of bin 0 (bin k: range_offset_m + k range_per_bin_m)
+
+    @classmethod
+    def power_only(cls, name: str, n_bins: int, range_per_bin_m: float, range_offset_m: float, beams_per_turn: int,
+                   rotation_hz: float, *, f0_hz: float = 76.5e9, bandwidth_hz: float = 1.0e9,
+                   beam_width_rad: float = math.radians(1.8)) -> RadarConfig:
+        """A power-only rotating radar (a Navtech: no beat frequencies, one sweep per azimuth) from
+        its range bins: ``modulation_hz = beams_per_turn * rotation_hz`` and ``bin_hz`` chosen so
+        that ``range_per_bin_m = c bin_hz / (4 bandwidth_hz modulation_hz)``. Bin k lies at
+        ``range_offset_m + k range_per_bin_m``; ``range_max_m`` is the far edge of the last bin,
+        ``n_bins range_per_bin_m``. The defaults are the Navtech CTS350-X / CIR304-H's nominal
+        76-77 GHz sweep and 1.8 deg beam (every dataset reader and the live driver build theirs here)."""
+        modulation_hz = beams_per_turn * rotation_hz
+        return cls(name=name, f0_hz=f0_hz, bandwidth_hz=bandwidth_hz, modulation_hz=modulation_hz,
+                   bin_hz=range_per_bin_m * 4.0 * bandwidth_hz * modulation_hz / SPEED_OF_LIGHT_MPS,
+                   n_bins=int(n_bins), beam_width_rad=beam_width_rad, rotation_hz=float(rotation_hz),
+                   beams_per_turn=int(beams_per_turn), range_min_m=0.0, range_max_m=n_bins * range_per_bin_m,
+                   doppler=False, range_offset_m=float(range_offset_m))
 
     def invalid_reason(self) -> str | None:
         """Non-finite numbers, or a quantity every range and time formula divides by that is not > 0.

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -18,25 +16,15 @@ from mcap.reader import make_reader
 from impala_flow.cli import main
 from impala_flow.io import MissionReader
 
+from .._node import node_script
+
 HERE = Path(__file__).resolve().parent
 PACKAGES = ["@mcap/core@2", "@mcap/support@1", "protobufjs@7"]
 
 
 @pytest.fixture(scope="module")
 def node_reader() -> list[str]:
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        pytest.skip("node and npm are not installed")
-    cache = Path(os.environ.get("IMPALA_FLOW_NPM_CACHE", Path.home() / ".cache" / "impala-flow-npm"))
-    if not (cache / "node_modules" / "@mcap" / "core").is_dir():
-        cache.mkdir(parents=True, exist_ok=True)
-        r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--prefix", str(cache), *PACKAGES],
-                           capture_output=True, text=True, timeout=300)
-        if r.returncode != 0:
-            pytest.skip(f"npm could not install {PACKAGES}: {r.stderr.strip().splitlines()[-1:]}")
-    script = cache / "ts_read_mcap.js"
-    shutil.copy(HERE / "ts_read_mcap.js", script)  # next to its node_modules
-    return [node, str(script)]
+    return node_script(HERE / "ts_read_mcap.js", PACKAGES, "@mcap/core")
 
 
 def _ts_read(reader: list[str], path: Path) -> dict:

@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from .._node import node_script
 from .helpers import ros_messages, write_every_type
 
 HERE = Path(__file__).resolve().parent
@@ -23,19 +22,7 @@ PACKAGES = ["@mcap/core@2", "@mcap/support@1", "@foxglove/rosmsg@5", "@foxglove/
 
 @pytest.fixture(scope="module")
 def node_reader() -> list[str]:
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        pytest.skip("node and npm are not installed")
-    cache = Path(os.environ.get("IMPALA_FLOW_NPM_CACHE", Path.home() / ".cache" / "impala-flow-npm"))
-    if not (cache / "node_modules" / "@foxglove" / "rosmsg2-serialization").is_dir():
-        cache.mkdir(parents=True, exist_ok=True)
-        r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--prefix", str(cache), *PACKAGES],
-                           capture_output=True, text=True, timeout=300)
-        if r.returncode != 0:
-            pytest.skip(f"npm could not install {PACKAGES}: {r.stderr.strip().splitlines()[-1:]}")
-    script = cache / "ts_read_ros2.js"
-    shutil.copy(HERE / "ts_read_ros2.js", script)  # next to its node_modules
-    return [node, str(script)]
+    return node_script(HERE / "ts_read_ros2.js", PACKAGES, "@foxglove/rosmsg2-serialization")
 
 
 def _plain(v: Any) -> Any:

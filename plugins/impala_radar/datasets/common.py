@@ -167,20 +167,11 @@ def check_speed(t_ns: np.ndarray, east_m: np.ndarray, north_m: np.ndarray, where
 
 def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offset_m: float,
                    beams_per_turn: int, rotation_hz: float) -> impala_msgs.RadarConfig:
-    """A power-only Navtech radar as a :class:`~impala_msgs.RadarConfig`.
-
-    Navtech gives no beat frequencies: ``modulation_hz`` is one sweep per azimuth
-    (``beams_per_turn * rotation_hz``) and ``bin_hz`` is chosen so that
-    ``range_per_bin_m = c bin_hz / (4 bandwidth_hz modulation_hz)`` is the dataset's range
-    per bin. Bin k lies at ``range_offset_m + k range_per_bin_m``; ``range_max_m`` is the far
-    edge of the last bin, ``n_bins range_per_bin_m``."""
-    modulation_hz = beams_per_turn * rotation_hz
-    return impala_msgs.RadarConfig(
-        name=name, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ, modulation_hz=modulation_hz,
-        bin_hz=range_per_bin_m * 4.0 * _BANDWIDTH_HZ * modulation_hz / impala_msgs.SPEED_OF_LIGHT_MPS,
-        n_bins=int(n_bins), beam_width_rad=math.radians(1.8), rotation_hz=float(rotation_hz),
-        beams_per_turn=int(beams_per_turn), range_min_m=0.0, range_max_m=n_bins * range_per_bin_m,
-        doppler=False, range_offset_m=float(range_offset_m))
+    """A power-only Navtech radar (76-77 GHz sweep) as a :class:`~impala_msgs.RadarConfig`:
+    :meth:`~impala_msgs.RadarConfig.power_only` (one sweep per azimuth, ``bin_hz`` giving the
+    dataset's range per bin; bin k at ``range_offset_m + k range_per_bin_m``)."""
+    return impala_msgs.RadarConfig.power_only(name, n_bins, range_per_bin_m, range_offset_m, beams_per_turn,
+                                              rotation_hz, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ)
 
 
 @dataclass(eq=False)

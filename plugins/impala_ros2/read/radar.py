@@ -34,10 +34,9 @@ from .. import msgdefs
 from .cdr import decoder_of, stamp_ns
 from .params import check_params
 
-__all__ = ["BScanAdapter", "FftAdapter", "CONFIGURATION", "counts_to_power", "navtech_config"]
+__all__ = ["BScanAdapter", "FftAdapter", "CONFIGURATION", "counts_to_power"]
 
 CONFIGURATION = msgdefs.schema_name("messages/RadarConfigurationMessage")
-_BANDWIDTH_HZ, _F0_HZ = 1.0e9, 76.5e9  # nominal Navtech sweep (76-77 GHz), as the direct import's RadarConfig
 _EMPTY = np.zeros(0, dtype=np.float32)
 _HEAD = 20  # stamps read to measure the rotation rate
 
@@ -51,17 +50,6 @@ def counts_to_power(counts: np.ndarray, db_per_count: float) -> np.ndarray:
     return np.power(10.0, c.astype(np.float64) * db_per_count / 10.0).astype(np.float32)
 
 
-def navtech_config(name: str, n_bins: int, range_per_bin_m: float, range_offset_m: float, beams_per_turn: int,
-                   rotation_hz: float) -> impala_msgs.RadarConfig:
-    """A power-only Navtech radar as a RadarConfig: one sweep per azimuth, ``bin_hz`` chosen so that
-    ``range_per_bin_m = c bin_hz / (4 bandwidth modulation)`` (the direct import's construction)."""
-    modulation_hz = beams_per_turn * rotation_hz
-    return impala_msgs.RadarConfig(
-        name=name, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ, modulation_hz=modulation_hz,
-        bin_hz=range_per_bin_m * 4.0 * _BANDWIDTH_HZ * modulation_hz / impala_msgs.SPEED_OF_LIGHT_MPS,
-        n_bins=int(n_bins), beam_width_rad=math.radians(1.8), rotation_hz=float(rotation_hz),
-        beams_per_turn=int(beams_per_turn), range_min_m=0.0, range_max_m=n_bins * range_per_bin_m,
-        doppler=False, range_offset_m=float(range_offset_m))
 
 
 def _layout(field_bytes: Any, dtype: str) -> float | None:
@@ -161,8 +149,10 @@ class _Radar:
 
     def _config(self, g: dict[str, Any]) -> impala_msgs.RadarConfig:
         res = float(g["range_resolution_m"])
-        cfg = navtech_config(self.params.get("sensor", "navtech-ros2"), int(g["n_bins"]), res,
-                             g["range_offset_bins"] * res, int(g["beams_per_turn"]), float(g["rotation_hz"]))
+        # the direct import's construction (a power-only Navtech, its nominal 76-77 GHz sweep)
+        cfg = impala_msgs.RadarConfig.power_only(self.params.get("sensor", "navtech-ros2"), int(g["n_bins"]), res,
+                                                 g["range_offset_bins"] * res, int(g["beams_per_turn"]),
+                                                 float(g["rotation_hz"]))
         why = cfg.invalid_reason()
         if why is not None:
             raise ValueError(f"radar geometry: {why}")
