@@ -12,6 +12,8 @@ import pytest
 
 from impala_flow import cli
 
+from ..conftest import built_once
+
 ROOT = Path(__file__).resolve().parents[2]
 GRAPH = ROOT / "graphs" / "rslam.yaml"
 #: short missions keep a task at about 2 s: R-SLAM still gets 4 turns and the evaluator its figures
@@ -29,9 +31,14 @@ def simulate(path: Path, seed: int, duration_s: float = DURATION_S, scenario: st
 
 @pytest.fixture(scope="session")
 def missions(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """Two 4-second Beynes missions (seeds 1 and 2), as `impala-flow simulate` writes them."""
-    folder = tmp_path_factory.mktemp("missions")
-    return [simulate(folder / f"beynes-{seed}.mcap", seed) for seed in (1, 2)]
+    """Two 4-second Beynes missions (seeds 1 and 2), as `impala-flow simulate` writes them (once per run)."""
+
+    def build(folder: Path) -> None:
+        for seed in (1, 2):
+            simulate(folder / f"beynes-{seed}.mcap", seed)
+
+    folder = built_once(tmp_path_factory, "sweep-missions", build)
+    return [folder / f"beynes-{seed}.mcap" for seed in (1, 2)]
 
 
 @pytest.fixture

@@ -16,6 +16,8 @@ from impala_flow.cli import main
 from impala_flow.io import MissionReader
 from impala_radar.simulator.scenario import scenario_path
 
+from ..conftest import built_once
+
 GRAPH = Path(__file__).resolve().parents[2] / "graphs" / "datmo.yaml"
 
 
@@ -57,14 +59,19 @@ def truth_of(mission: Path, mover: int) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 @pytest.fixture(scope="session")
 def missions(tmp_path_factory):
-    """The failure-mode missions (seeds not used for tuning)."""
-    tmp = tmp_path_factory.mktemp("datmo")
-    return {
-        # mover 1 (20 km/h, y = 23.25) passes abeam of the static radar at t = 25.4 s: zero radial speed
-        "tangential": simulate(tmp, "datmo", "tangential", 7, 32.0),
-        # two cars reach the crossroads (33.25, 23.25) together at t ~ 131.6 s: one beam, two Dopplers
-        "crossing": simulate(tmp, "datmo", "crossing", 7, 18.0, start_t_ns=120_000_000_000),
-        # the radar at 7 m/s followed 35 m behind by a car at 7 m/s: zero relative Doppler (Fig. 17, A)
-        "follower": simulate(tmp, "traffic", "follower", 7, 16.0, start_t_ns=15_000_000_000, speed_mps=7.0,
-                             vehicle={"rest_at_ends": False}),
-    }
+    """The failure-mode missions (seeds not used for tuning), simulated once per test run."""
+
+    def build(tmp: Path) -> None:
+        made = {
+            # mover 1 (20 km/h, y = 23.25) passes abeam of the static radar at t = 25.4 s: zero radial speed
+            "tangential": simulate(tmp, "datmo", "tangential", 7, 32.0),
+            # two cars reach the crossroads (33.25, 23.25) together at t ~ 131.6 s: one beam, two Dopplers
+            "crossing": simulate(tmp, "datmo", "crossing", 7, 18.0, start_t_ns=120_000_000_000),
+            # the radar at 7 m/s followed 35 m behind by a car at 7 m/s: zero relative Doppler (Fig. 17, A)
+            "follower": simulate(tmp, "traffic", "follower", 7, 16.0, start_t_ns=15_000_000_000, speed_mps=7.0,
+                                 vehicle={"rest_at_ends": False}),
+        }
+        assert all(path == tmp / f"{name}.mcap" for name, path in made.items())
+
+    tmp = built_once(tmp_path_factory, "datmo-missions", build)
+    return {name: tmp / f"{name}.mcap" for name in ("tangential", "crossing", "follower")}
