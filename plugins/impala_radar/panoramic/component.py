@@ -141,6 +141,10 @@ class PanoramicBuilder(Component):
         self._bootstrap_v: float | None = None
         self._t_image: int | None = None  # t_ref of the previous image
         self.stale_twist = 0  # turns imaged with a twist older than the previous image
+        # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
+        # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
+        power = np.ones((4, 8), np.float32)
+        scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), np.zeros((4, 3)), 1.0, 1.0, 4.0)
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
