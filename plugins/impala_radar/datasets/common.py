@@ -26,8 +26,6 @@ __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_co
            "check_speed", "MAX_MISSION_SPAN_S", "MAX_STEP_BACK_S", "MAX_SPEED_MPS", "NAVTECH_TURN_S",
            "UNIX_S_MAX", "DB_PER_COUNT_MAX", "RANGE_RESOLUTION_MAX_M", "RANGE_OFFSET_MAX_BINS"]
 
-_BANDWIDTH_HZ = 1.0e9  # 76-77 GHz sweep of the Navtech CTS350-X / CIR304-H
-_F0_HZ = 76.5e9
 _EMPTY = np.zeros(0, dtype=np.float32)
 _BACK = "time going back or repeated"
 
@@ -171,7 +169,7 @@ def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offs
     :meth:`~impala_msgs.RadarConfig.power_only` (one sweep per azimuth, ``bin_hz`` giving the
     dataset's range per bin; bin k at ``range_offset_m + k range_per_bin_m``)."""
     return impala_msgs.RadarConfig.power_only(name, n_bins, range_per_bin_m, range_offset_m, beams_per_turn,
-                                              rotation_hz, f0_hz=_F0_HZ, bandwidth_hz=_BANDWIDTH_HZ)
+                                              rotation_hz)
 
 
 @dataclass(eq=False)

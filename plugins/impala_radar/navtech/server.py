@@ -232,15 +232,14 @@ class NavtechServer:
         while True:
             first = last = None
             for t, beam in self.recording.beams():
-                t += shift
-                if t0 is None:
-                    t0 = t
+                t += shift  # the recorded time, run on by the loops
+                first = t if first is None else first
+                last = t
+                t0 = first if t0 is None else t0
                 if self.speed != 1.0:  # a radar turning `speed` times faster, its clock at real time
                     t = t0 + int(round((t - t0) / self.speed))
                 if t < 0:
                     raise ServerError(f"beam at t = {t} ns: a device time before 1970 cannot be sent")
-                first = t if first is None else first
-                last = t
                 values, clipped = counts_of_power(beam.up, self.db_per_count, self.high_precision)
                 self.counts["samples_clipped"] += clipped
                 fft = FftData(sweep, count_of_azimuth(beam.azimuth_rad, enc, offset), t // 1_000_000_000,
@@ -250,7 +249,7 @@ class NavtechServer:
                 yield t, encode_message(fft.type, fft.encode())
             if not self.loop or first is None:
                 return
-            shift += int(round((last - first) * self.speed)) + period_ns
+            shift += last - first + period_ns
             self.counts["loops"] += 1
 
     def serve(self) -> None:
