@@ -372,6 +372,7 @@ class Component:
         self.trigger = ""
         self.log = log.getChild(self.name)
         self._clock_ns: Callable[[], int] = time.monotonic_ns
+        self._origin_tl: Any = None  # the real-time executor's per-thread origin (a threading.local)
         ins, outs = self.declare_ports(values)
         _refuse_shared_names(f"component '{self.name}' ({type(self).__name__})", ins, outs, self.__params__,
                              self.__timers__)
@@ -395,6 +396,24 @@ class Component:
     def now_ns(self) -> int:
         """Mission time now (live sources stamp their samples with it)."""
         return self._clock_ns()
+
+    @property
+    def work_origin_ns(self) -> int | None:
+        """Live only: the origin of the work the current ``process`` call does, on the mission
+        clock (the arrival of the source sample that led to its trigger; what the latency
+        figures of what it emits count from). ``None`` offline and outside ``process``.
+
+        A component that holds work for later (a turn waiting for a fed-back estimate) keeps
+        this value with the work and sets it back before emitting the result, so the latency
+        of that result counts the wait: ``self.work_origin_ns = held_origin``. Setting it
+        offline does nothing."""
+        tl = self._origin_tl
+        return None if tl is None else getattr(tl, "origin_ns", None)
+
+    @work_origin_ns.setter
+    def work_origin_ns(self, origin_ns: int | None) -> None:
+        if self._origin_tl is not None:
+            self._origin_tl.origin_ns = origin_ns
 
     # --- lifecycle -----------------------------------------------------------------
     def start(self) -> None:
@@ -434,6 +453,13 @@ class Source(Component):
     def duration_hint_ns(self) -> int | None:
         """Mission duration this source expects to produce, for progress bars."""
         return None
+
+    def request_stop(self) -> None:
+        """Called by the real-time executor, from another thread, when the run stops (its
+        end, ``--duration``, an interrupt, an error): a source waiting on a device (a socket
+        read, a silent sensor) should leave ``generate()`` at its next poll. The executor also
+        closes the generator at its next ``yield``, so a source that yields often needs
+        nothing here. Must return at once."""
 
 
 #: attribute names of Component and Source that a declaration would silently shadow

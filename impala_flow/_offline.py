@@ -213,6 +213,8 @@ class OfflineExecutor:
         push, pop = heapq.heappush, heapq.heappop
         summary = self.summary
         counts = {c: 0 for c in order}  # by component: no .name lookup per call
+        for c in order:
+            c._origin_tl = None  # no latency offline: work_origin_ns is None (a live run may have set it)
         hists = {c: Histogram() for c in order}  # time per process call (perf_counter_ns)
         pc = time.perf_counter_ns
         duration_ns = self.duration_ns

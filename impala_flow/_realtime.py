@@ -58,9 +58,10 @@ source at all, which runs until stopped), when ``stop_event`` is set (``Session`
 ``KeyboardInterrupt`` reaching the calling thread does the same) or when a component
 raises. Then, in this order:
 
-1. sources stop taking samples (their generators are closed in their own thread; a
-   source blocked inside ``generate()`` for longer than ``stop_timeout_s`` is abandoned,
-   with a warning) and the timers stop;
+1. sources stop taking samples (each is told with ``Source.request_stop()``, so one waiting
+   on a device leaves at its next poll; their generators are closed in their own thread; a
+   source still inside ``generate()`` after ``stop_timeout_s`` is abandoned, with a
+   warning) and the timers stop;
 2. after an interrupt, the samples already delivered are still processed (up to
    ``drain_timeout_s``), so nothing acquired is lost; after an error, nothing new starts;
    at a normal end (all sources exhausted), each component's ``flush(t)`` then runs, in
@@ -87,7 +88,8 @@ flush) once the mission clock has run that long; ``summary.stopped_at_duration``
 Every ``process`` call is timed (``time.perf_counter_ns``) into the component's histogram, and
 every sample carries the origin of its work (``Sample.entered_ns``: a source's sample its arrival
 on the mission clock, a component's emission the origin of the sample that triggered the call,
-set per worker thread); its first delivery records ``now - origin`` per output. Both go to the
+set per worker thread; a component that holds work for later sets it back with
+``Component.work_origin_ns``); its first delivery records ``now - origin`` per output. Both go to the
 summary (``timing``, ``latency``; :mod:`impala_flow._timing`): about 1 us per call and per
 emitted sample, memory bounded by the histograms' buckets.
 
@@ -458,6 +460,7 @@ class RealTimeExecutor:
         route: dict[InputPort, tuple[_State, tuple[int, Any, int]]] = {}
         for c in order:
             c._clock_ns = now
+            c._origin_tl = self._origin
             if c.inputs or c.__timers__:
                 st = states[c.name] = _State(c, c.name in skip)
                 groups: dict[SyncGroup, tuple[int, Any, int]] = {g: (_SYNC, g, 0) for g in c.sync_groups.values()}
@@ -607,6 +610,12 @@ class RealTimeExecutor:
         each one's consequences drained before the next), close mailboxes, join workers."""
         self._stopping.set()
         self._timers_stop.set()
+        for r in sources:
+            if r.thread is not None and r.thread.is_alive():
+                try:
+                    r.src.request_stop()
+                except Exception as e:  # a source's own failure to stop must not hide the run's result
+                    log.warning("source '%s': request_stop() raised %s: %s", r.src.name, type(e).__name__, e)
         deadline = time.monotonic() + self.stop_timeout_s
         for r in sources:
             if r.thread is not None:

@@ -15,7 +15,8 @@ What the executors record (:mod:`impala_flow._offline`, :mod:`impala_flow._realt
 - **latency** (the real-time executor only): a sample entering the graph from a source
   carries its *origin*, the mission clock when it arrived; a sample a component emits
   inherits the origin of the sample that triggered the ``process`` call emitting it (a sync
-  group: its latest member's; a timer: the tick's time). Per component output,
+  group: its latest member's; a timer: the tick's time; a component that held the work
+  for later, what it set back with ``Component.work_origin_ns``). Per component output,
   ``summary.latency["component.output"]`` holds the distribution of ``mission clock at emit -
   origin``: from the arrival of the sample that completed the work to its result (for a
   radar chain, from the beam that completes a turn to that turn's pose). Offline, mission

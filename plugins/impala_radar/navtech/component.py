@@ -21,8 +21,13 @@ turn of beams counts as failed: a peer that breaks every stream early is not ret
 or a configuration that changes mid-stream (another radar or geometry: the beams already emitted
 would not match), the source stops with one line (:class:`NavtechError`). Every socket
 operation has a timeout; :meth:`stop` returns at once and ``generate()`` leaves within one poll
-(0.2 s). Under the real-time executor a streaming radar stops with the graph at its next beam;
-a silent one is left by the executor after its ``stop_timeout_s`` and ends at ``stop()``.
+(0.2 s). Under the real-time executor a streaming radar stops with the graph at its next beam,
+a silent one within one poll (the executor's ``request_stop``).
+
+A recorded run keeps what the driver knew (:meth:`source_metadata`, the MCAP metadata record
+``impala_flow.source.<component>``): the endpoint, the device configuration, the counts (turns,
+lost, reconnects) and the clock mapping at the end (offset, drift, steps, residuals); the beams'
+stamps are the mapping applied.
 """
 
 from __future__ import annotations
@@ -132,6 +137,22 @@ class NavtechRadar(RadarDriver):
                 sock.shutdown(socket.SHUT_RDWR)
             except OSError:
                 pass
+
+    def request_stop(self) -> None:
+        self._stop.set()  # the session's loop sees it within one poll (_POLL_S)
+
+    def source_metadata(self) -> dict[str, str]:
+        """What a recording of this radar keeps (strings: an MCAP metadata record)."""
+        out = {k: str(v) for k, v in self.summary().items() if k not in ("clock", "messages_ignored")}
+        if self.device_config is not None:
+            d = self.device_config
+            out["device_config"] = " ".join(f"{k}={getattr(d, k)}" for k in (
+                "azimuth_samples", "bin_size", "range_in_bins", "encoder_size", "rotation_speed_mhz", "packet_rate",
+                "range_gain", "range_offset_m"))
+        if self.clock is not None:
+            out.update({f"clock_{k}": str(v) for k, v in self.clock.summary().items()
+                        if k not in ("window_points", "window_bytes")})
+        return out
 
     def summary(self) -> dict[str, Any]:
         c = self.counts

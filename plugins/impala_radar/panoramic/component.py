@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import deque
+
 import cv2
 import numpy as np
 
@@ -13,6 +15,7 @@ from ..turns import TurnBuffer
 from .core import (
     AzimuthTable,
     doppler_compensated_power,
+    grid_geometry,
     integrate_poses,
     normalise_beams,
     relative_to,
@@ -42,13 +45,18 @@ def bootstrap_speed(first: list[tuple[int, RadarBeam]], second: list[tuple[int, 
         mids.append(int(t_ns.min()) + (int(t_ns.max()) - int(t_ns.min())) // 2)
     dt_s = (mids[1] - mids[0]) * 1e-9
     best_dx, best_response = 0.0, 0.05  # below this response: no clear peak
+    # each turn imaged once: without motion a cell is blanked exactly when its own range is below
+    # the blanking radius (scan_to_grid's rule), so the blanked images are masks of these
+    grids = []
+    for db, azimuth, cfg in polar:
+        grid, _ = scan_to_grid(db, azimuth, np.zeros((len(azimuth), 3)), cfg.range_per_bin_m, cell_m,
+                               min(range_m, cfg.range_max_m), 0.0, cfg.range_offset_m)
+        grids.append(grid.astype(np.float64))
+    r_cell = grid_geometry((grids[0].shape[0] - 1) // 2, float(cell_m))[2]
+    window = cv2.createHanningWindow(grids[0].shape[::-1], cv2.CV_64F)
     for blank in blank_m:
-        images = []
-        for db, azimuth, cfg in polar:
-            grid, _ = scan_to_grid(db, azimuth, np.zeros((len(azimuth), 3)), cfg.range_per_bin_m, cell_m,
-                                   min(range_m, cfg.range_max_m), 0.0, cfg.range_offset_m, blank)
-            images.append(grid.astype(np.float64))
-        window = cv2.createHanningWindow(images[0].shape[::-1], cv2.CV_64F)
+        near = r_cell < np.float32(blank)
+        images = [np.where(near, 0.0, g) for g in grids]
         (dx, _), response = cv2.phaseCorrelate(images[0], images[1], window)
         if np.isfinite(dx) and np.isfinite(response) and response > best_response:
             best_dx, best_response = dx, response
@@ -80,18 +88,25 @@ class PanoramicBuilder(Component):
     Motion during the turn, first available of: the ``odometer`` and ``gyro`` histories
     over the turn; the last estimated ``twist`` (e.g. ``slam.twist`` through a delayed
     connection: the velocity of the previous estimates, for a radar without odometry);
-    the constant ``speed_mps`` / ``yaw_rate_radps``. A turn imaged, ``twist`` connected, without
-    a twist of the previous image or later (live, a SLAM still busy with the previous turn when
-    this one closed; or no estimate came for it) is counted as ``stale_twist``: offline the
-    previous turn's estimate, if any, is always back first, so a live run and its replay image
-    the same turns the same way exactly when the live count is no larger than the replay's.
+    the constant ``speed_mps`` / ``yaw_rate_radps``. Fed-back twist (``twist`` connected, no
+    odometer or gyro): a complete turn waits for the twist of the previous image, as offline,
+    where the previous turn's estimate is always back first; live, a SLAM may still be busy
+    with the previous turn when this one closes (its first turns, a slow turn). The wait is
+    bounded in radar time: once a beam stamped ``twist_wait_s`` after the waiting turn's last
+    beam arrives, the turn is imaged with the twist it has and counted as ``stale_twist``
+    (also when no estimate came for the previous image, as at a SLAM's first image, offline
+    too). So a live run and its replay image the same turns the same way, bit for bit,
+    whenever the live ``stale_twist`` is no larger than the replay's; while turns wait, the
+    SLAM gets no new image, so a slow start drops no turn at the SLAM's input. The latency
+    figures of a held turn's outputs count the wait (``Component.work_origin_ns``).
     Bootstrap: with ``twist`` connected
     and no odometry, nothing is known of the motion before the first estimate, and an
     uncorrected first image would stay in a SLAM's map (a Navtech at 8 m/s moves 2 m in a
     turn). So the first turn is held until the second one is complete; the displacement
     between their uncorrected images (:func:`bootstrap_speed`, phase correlation) gives
     the initial forward speed, and both are then imaged with it (yaw rate 0); the first
-    image is emitted late, stamped at its own time. The within-turn correction restarts
+    image is emitted late, stamped at its own time (live, its latency figures count the wait
+    for the second turn: one turn period more than the others'). The within-turn correction restarts
     every turn (only poses relative to t_ref are used). With ``doppler_compensation`` the
     static Doppler is removed from both ramps before they are averaged (the image of a
     Doppler radar is then the mean of the two ramps). With ``ground_range`` each cell reads
@@ -127,6 +142,9 @@ class PanoramicBuilder(Component):
                       "whose displacement gives the initial speed")
     min_turn_fraction = Param(float, default=0.5, ge=0, le=1,
                               doc="a partial last turn is imaged if it holds this fraction of a turn")
+    twist_wait_s = Param(float, default=0.5, ge=0,
+                         doc="with a fed-back twist: a complete turn waits at most this long (radar time, "
+                         "beams after its last) for the twist of the previous image; 0: never waits")
 
     def start(self) -> None:
         self._turn = TurnBuffer()
@@ -138,9 +156,14 @@ class PanoramicBuilder(Component):
         self.dropped_beams = 0  # duplicated azimuths within a turn
         self.motion_source: dict[str, int] = {}
         self._held: list[tuple[int, RadarBeam]] | None = None  # the first turn, awaiting the second
+        self._held_origin: int | None = None  # the work origin of the beam that completed it (live)
         self._bootstrap_v: float | None = None
         self._t_image: int | None = None  # t_ref of the previous image
         self.stale_twist = 0  # turns imaged with a twist older than the previous image
+        # complete turns waiting for the twist of the previous image: (beams, their work origin)
+        self._waiting: deque[tuple[list[tuple[int, RadarBeam]], int | None]] = deque()
+        self._twist_fed_back = self.twist.connected and not self.odometer.connected and not self.gyro.connected
+        self._wait_ns = round(self.twist_wait_s * 1e9)
         # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
         # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
         power = np.ones((4, 8), np.float32)
@@ -149,23 +172,56 @@ class PanoramicBuilder(Component):
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
             self._turn_done(buf)
+        if self._waiting:
+            self._release(t)
+
+    def _twist_back(self) -> bool:
+        """The twist of the previous image is here (or no image yet, or none is fed back)."""
+        if not self._twist_fed_back or self._t_image is None:
+            return True
+        last = self.twist.latest()
+        return last is not None and last.timestamp >= self._t_image
+
+    def _release(self, t: int | None) -> None:
+        """Image the waiting turns whose previous twist is back, or whose wait is over at beam
+        time ``t`` (``None``: the beams are exhausted, all of them), in turn order."""
+        while self._waiting:
+            buf, origin = self._waiting[0]
+            if not (t is None or self._twist_back() or t - buf[-1][0] >= self._wait_ns):
+                return
+            self._waiting.popleft()
+            self._flush_from(buf, origin)
+
+    def _flush_from(self, buf: list[tuple[int, RadarBeam]], origin: int | None) -> None:
+        """Image a turn that was held: the latency of its outputs counts from ``origin`` (live:
+        the arrival of the beam that completed it), the wait included."""
+        now = self.work_origin_ns
+        self.work_origin_ns = origin
+        try:
+            self._flush(buf)
+        finally:
+            self.work_origin_ns = now
 
     def _turn_done(self, buf: list[tuple[int, RadarBeam]]) -> None:
         """Image a complete turn, or hold the first one for the bootstrap (see the class doc)."""
         waiting = (self.bootstrap and self.twist.connected and self.twist.get() is None
                    and not self.odometer.connected and not self.gyro.connected and self._bootstrap_v is None)
         if not waiting:
-            self._flush(buf)
+            if self._waiting or not self._twist_back():
+                self._waiting.append((buf, self.work_origin_ns))
+            else:
+                self._flush(buf)
         elif self._held is None:
-            self._held = buf
+            self._held, self._held_origin = buf, self.work_origin_ns
         else:
             held, self._held = self._held, None
             self._bootstrap_v = bootstrap_speed(held, buf, self.normalise == "beam_median")
-            self._flush(held)
+            self._flush_from(held, self._held_origin)
             self._flush(buf)
 
     def flush(self, t: int) -> None:
         """The beams are exhausted: image the partial last turn if it is large enough."""
+        self._release(None)
         if self._held is not None:  # a single turn: no second one to bootstrap from
             held, self._held = self._held, None
             self._bootstrap_v = 0.0

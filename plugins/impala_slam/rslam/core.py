@@ -208,7 +208,8 @@ class RSlamCore:
             xs = grid.origin_x_m + grid.cell_m * np.arange(grid.data.shape[1], dtype=np.float64)
             ys = grid.origin_y_m + grid.cell_m * np.arange(grid.data.shape[0], dtype=np.float64)
             self._both = np.empty(grid.data.shape + (2,), np.float32)
-            self._both[..., 1] = self.alpha(np.hypot(xs[None, :], ys[:, None]))
+            for i in range(0, len(ys), 32):  # by bands of rows: the float64 temporaries stay in cache
+                self._both[i:i + 32, :, 1] = self.alpha(np.hypot(xs[None, :], ys[i:i + 32, None]))
             self._alpha_key = key
         return self._both
 
