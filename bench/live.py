@@ -7,7 +7,7 @@ with ``impala-flow run --duration`` (its own process too: the user's command), t
 recording is replayed through ``graphs/live_navtech_replay.yaml`` and the poses compared.
 
 Per speed (the emulator's pace, x real time): turns received and lost, turns dropped at a
-stage (R-SLAM's input holds one turn image: an older one waiting is dropped whole), each
+stage (R-SLAM's input holds two turn images: an older one waiting is dropped whole), each
 stage's latency (from the arrival of the beam that completed a turn to the stage's output for
 that turn: median, p99, max), the CPU utilisation of the graph's process (``2.0``: both
 cores busy), and the live poses against the replayed ones (bit-identical count). The fastest
@@ -20,6 +20,8 @@ The last line printed is one JSON object with the keys ``live_seconds_s``, and a
 speed) ``live_turns``, ``live_turns_lost``, ``live_turns_dropped``,
 ``live_slam_latency_median_ms``, ``live_slam_latency_p99_ms``, ``live_odometry_latency_median_ms``,
 ``live_odometry_latency_p99_ms``, ``live_panoramic_latency_p99_ms``, ``live_cpu_cores``,
+``live_stale_twist`` (turns imaged before R-SLAM's twist of the previous turn was back: 1
+offline, the bootstrap's second image),
 ``live_replay_identical_poses``, ``live_replay_poses``, then ``live_fastest_speed_x`` and
 ``peak_rss_mb`` (the largest of the child processes: a graph's, the emulator's being smaller).
 """
@@ -141,6 +143,7 @@ def figures(s: dict[str, Any], speed: float) -> dict[str, Any]:
             "odometry_median_ms": ms("odometry.pose", "median_ms"), "odometry_p99_ms": ms("odometry.pose", "p99_ms"),
             "panoramic_median_ms": ms("panoramic.image", "median_ms"),
             "panoramic_p99_ms": ms("panoramic.image", "p99_ms"),
+            "stale_twist": int(extra.get("panoramic", {}).get("stale_twist", 0)),
             "cpu_cores": s["_cpu_cores"], "wall_s": s["wall_s"]}
 
 
@@ -175,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
               f"reconnects {f['reconnects']}; latency panoramic {f['panoramic_median_ms']:.1f} / "
               f"{f['panoramic_p99_ms']:.1f} ms, R-SLAM {f['slam_median_ms']:.1f} / {f['slam_p99_ms']:.1f} ms "
               f"(max {f['slam_max_ms']:.1f}), odometry {f['odometry_median_ms']:.1f} / {f['odometry_p99_ms']:.1f} ms "
-              f"(median / p99); CPU {f['cpu_cores']:.2f} cores")
+              f"(median / p99); turns imaged with a stale twist {f['stale_twist']}; CPU {f['cpu_cores']:.2f} cores")
     period_ms = 250.0
     ok = [f["speed_x"] for f in rows if f["turns_dropped"] == 0 and f["turns_lost"] == 0 and f["turns"] > 0
           and f["slam_p99_ms"] < period_ms / f["speed_x"]]
@@ -193,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         "live_odometry_latency_median_ms": round(f1["odometry_median_ms"], 2),
         "live_odometry_latency_p99_ms": round(f1["odometry_p99_ms"], 2),
         "live_panoramic_latency_p99_ms": round(f1["panoramic_p99_ms"], 2),
-        "live_cpu_cores": round(f1["cpu_cores"], 2),
+        "live_cpu_cores": round(f1["cpu_cores"], 2), "live_stale_twist": f1["stale_twist"],
         "live_replay_identical_poses": sum(c["identical"] for c in cmp.values()),
         "live_replay_poses": sum(c["common"] for c in cmp.values()),
         "live_fastest_speed_x": max(ok) if ok else 0.0,

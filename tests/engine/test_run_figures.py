@@ -180,6 +180,40 @@ def test_realtime_duration_stops_a_live_run_cleanly_and_flushes() -> None:
     assert summary.drops() == {}
 
 
+class SilentDevice(Source):
+    """Live: one sample, then a device that says nothing more: it waits until asked to stop."""
+
+    live = True
+    out = Output(float)
+
+    def start(self) -> None:
+        self.wake = threading.Event()
+        self.asked = 0
+        self.left = False
+
+    def request_stop(self) -> None:
+        self.asked += 1
+        self.wake.set()
+
+    def generate(self):
+        try:
+            yield self.now_ns(), "out", 0.0
+            self.wake.wait(HANG_S)
+        finally:
+            self.left = True
+
+
+def test_a_live_source_waiting_on_a_silent_device_is_asked_to_stop(caplog: pytest.LogCaptureFixture) -> None:
+    """A source blocked in ``generate()`` (no ``yield`` to close it at) leaves when the executor
+    asks (``request_stop``), long before ``stop_timeout_s``: not abandoned, nothing warned."""
+    src, sink = SilentDevice("src"), CollectingSink("sink")
+    net = make_net(src, sink, connections=["src.out -> sink.x"])
+    summary = run_thread(lambda: RealTimeExecutor(net, duration_ns=100_000_000, stop_timeout_s=HANG_S).run())
+    assert summary.stopped_at_duration and summary.error is None
+    assert src.asked == 1 and src.left and sink.values() == [0.0]
+    assert not [r for r in caplog.records if "abandoned" in r.getMessage()]
+
+
 def test_session_duration_and_bad_values() -> None:
     session = Session(extra_plugins={"t": plugin_of(Ticks, CollectingSink)}, entrypoints=False)
     spec = session.load_text(textwrap.dedent("""
@@ -337,6 +371,66 @@ def test_latency_from_the_completing_beam_to_the_pose() -> None:
         assert lat["p99_ms"] == pytest.approx(np.quantile(ns, 0.99, method="lower") / 1e6, rel=0.016)
     lines = summary.format().splitlines()
     assert any(x.startswith("  LATENCY poser.pose: ") and "over 10 samples" in x for x in lines)
+
+
+class HeldTurns(Component):
+    """Like :class:`Turns`, but holds each turn until the first beam of the next one (a component
+    waiting for a feedback), then emits it with the origin of the beam that completed it
+    (``work_origin_ns``): its latency counts the wait."""
+
+    x = Input(float)
+    turn = Output(object)
+    ready: threading.Event | None = None
+
+    def start(self) -> None:
+        self.beams: list[float] = []
+        self.held: tuple[tuple[float, ...], int | None] | None = None
+        self.origins_offline: list[int | None] = []
+
+    def process(self, t: int) -> None:
+        self.beams.append(self.x.take())
+        self.origins_offline.append(self.work_origin_ns)
+        if self.held is not None:
+            turn, origin = self.held
+            self.held, now = None, self.work_origin_ns
+            self.work_origin_ns = origin
+            self.turn.emit(t, turn)
+            self.work_origin_ns = now
+        elif self.ready is not None:
+            self.ready.set()
+        if len(self.beams) == 4:
+            self.held, self.beams = (tuple(self.beams), self.work_origin_ns), []
+
+
+def test_a_held_result_counts_its_wait_in_its_latency() -> None:
+    """Turn k completes at beam 4k+3 and leaves at beam 4k+4: its latency is Front's work on the
+    completing beam, the 1 ms to the next beam and Front's work on that one (the fake clock's
+    advances); the turn after it is still held at the end (not emitted)."""
+    n = 40
+    clock, ready = FakeCounter(), threading.Event()
+    Beams.clock = Front.clock = Poser.clock = clock
+    Beams.ready = HeldTurns.ready = Poser.ready = ready
+    src, front, turns, poser, sink = Beams("src", n=n), Front("front"), HeldTurns("turns"), Poser("poser"), \
+        CollectingSink("sink")
+    net = make_net(src, front, turns, poser, sink, connections=[
+        "src.out -> front.x", "front.y -> turns.x", "turns.turn -> poser.turn", "poser.pose -> sink.x"])
+    summary = run_thread(lambda: RealTimeExecutor(net, clock=clock).run())
+    assert summary.processed["sink"] == n // 4 - 1
+    work = (np.arange(n) % 5 + 1) * 100_000
+    held = work[3:-1:4] + 1_000_000 + work[4::4]
+    for key, ns in {"turns.turn": held, "poser.pose": held + 2_000_000}.items():
+        lat = summary.latency[key]
+        assert lat["count"] == ns.size and lat["max_ms"] == pytest.approx(ns.max() / 1e6)
+        assert lat["median_ms"] == pytest.approx(np.quantile(ns, 0.5, method="lower") / 1e6, rel=0.016)
+
+
+def test_work_origin_is_none_offline_and_setting_it_does_nothing() -> None:
+    HeldTurns.ready = None
+    src, turns, sink = Ticks("src", n=12), HeldTurns("turns"), CollectingSink("sink")
+    summary = OfflineExecutor(make_net(src, turns, sink, connections=["src.out -> turns.x",
+                                                                       "turns.turn -> sink.x"])).run()
+    assert turns.origins_offline == [None] * 12 and summary.latency == {}
+    assert sink.values() == [(0.0, 1.0, 2.0, 3.0), (4.0, 5.0, 6.0, 7.0)]
 
 
 def test_offline_reports_no_latency() -> None:

@@ -73,6 +73,13 @@ def test_the_live_run_stops_at_its_duration_with_a_valid_recording(live_run):
     assert counts["radar/beams"] <= sent["fft_messages"]  # every beam recorded was sent, none invented
     assert counts["slam/pose"] == summary["emitted"]["slam.pose"] >= 3
     assert counts["odometry/pose"] == summary["emitted"]["odometry.pose"] >= 2
+    # what the driver knew, kept in the recording: the device's configuration and the clock mapping
+    with MissionReader(out / "live.mcap") as r:
+        meta = r.metadata()["impala_flow.source.radar"]
+    assert "azimuth_samples=400" in meta["device_config"] and "encoder_size=5600" in meta["device_config"]
+    assert int(meta["turns"]) == radar["turns"] and int(meta["turns_lost"]) == 0
+    assert int(meta["clock_offset_ns"]) == radar["clock"]["offset_ns"]
+    assert float(meta["clock_drift_ppm"]) == radar["clock"]["drift_ppm"] and int(meta["clock_steps"]) == 0
 
 
 def test_live_poses_follow_the_ground_truth(live_run):
