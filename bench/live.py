@@ -14,7 +14,7 @@ cores busy), and the live poses against the replayed ones (bit-identical count).
 speed the chain keeps up with: the fastest of ``--speeds`` with no turn dropped or lost and
 R-SLAM's p99 latency under one turn period at that pace.
 
-    python bench/live.py [--source DIR|MISSION] [--seconds 30] [--speeds 1,2,3] [--out DIR]
+    python bench/live.py [--source DIR|MISSION] [--seconds 30] [--speeds 1,2,3] [--cut-after 10] [--out DIR]
 
 The last line printed is one JSON object with the keys ``live_seconds_s``, and at 1x (the first
 speed) ``live_turns``, ``live_turns_lost``, ``live_turns_dropped``,
@@ -22,7 +22,9 @@ speed) ``live_turns``, ``live_turns_lost``, ``live_turns_dropped``,
 ``live_odometry_latency_p99_ms``, ``live_panoramic_latency_p99_ms``, ``live_cpu_cores``,
 ``live_stale_twist`` (turns imaged before R-SLAM's twist of the previous turn was back: 1
 offline, the bootstrap's second image),
-``live_replay_identical_poses``, ``live_replay_poses``, then ``live_fastest_speed_x`` and
+``live_replay_identical_poses``, ``live_replay_poses``, then ``live_fastest_speed_x``, the run
+with a connection cut every ``--cut-after`` seconds (``live_cut_every_s``, ``live_cut_reconnects``,
+``live_cut_turns``, ``live_cut_turns_lost``, ``live_cut_turns_dropped``, ``live_cut_slam_poses``) and
 ``peak_rss_mb`` (the largest of the child processes: a graph's, the emulator's being smaller).
 """
 
@@ -52,28 +54,34 @@ def _cli() -> list[str]:
     return [sys.executable, "-m", "impala_flow"]
 
 
-def start_server(source: str, speed: float, out: Path) -> tuple[subprocess.Popen, int]:
+def start_server(source: str, speed: float, out: Path, tag: str,
+                 extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, int]:
     """The emulator in its own process on a free loopback port (the port it prints)."""
-    log = open(out / f"server-x{speed:g}.log", "w")  # noqa: SIM115 - closed with the process
-    proc = subprocess.Popen([*_cli(), "navtech-server", source, "--port", "0", "--speed", f"{speed:g}", "--loop"],
-                            stdout=log, stderr=subprocess.STDOUT, text=True)
+    path = out / f"server-{tag}.log"
+    log = open(path, "w")  # noqa: SIM115 - closed with the process
+    proc = subprocess.Popen([*_cli(), "navtech-server", source, "--port", "0", "--speed", f"{speed:g}", "--loop",
+                             *extra], stdout=log, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 120.0
     while time.monotonic() < deadline:
-        m = re.search(r"listening:\s+[\d.]+:(\d+)", (out / f"server-x{speed:g}.log").read_text())
+        m = re.search(r"listening:\s+[\d.]+:(\d+)", path.read_text())
         if m:
             return proc, int(m.group(1))
         if proc.poll() is not None:
             break
         time.sleep(0.2)
     proc.kill()
-    raise SystemExit(f"bench/live.py: the emulator did not start: {(out / f'server-x{speed:g}.log').read_text()}")
+    raise SystemExit(f"bench/live.py: the emulator did not start: {path.read_text()}")
 
 
-def run_live(source: str, speed: float, seconds: float, out: Path, offset: float) -> dict[str, Any]:
-    """One live run against the emulator at ``speed``; the summary (JSON) and the CPU it took."""
-    run_out = out / f"x{speed:g}"
+def run_live(source: str, speed: float, seconds: float, out: Path, offset: float,
+             cut_after_s: float | None = None) -> dict[str, Any]:
+    """One live run against the emulator at ``speed`` (cutting the connection every
+    ``cut_after_s``); the summary (JSON) and the CPU it took."""
+    tag = f"x{speed:g}" if cut_after_s is None else f"x{speed:g}-cut{cut_after_s:g}s"
+    run_out = out / tag
     run_out.mkdir(parents=True, exist_ok=True)
-    server, port = start_server(source, speed, out)
+    extra = () if cut_after_s is None else ("--drop-after", f"{cut_after_s:g}")
+    server, port = start_server(source, speed, out, tag, extra)
     summary = run_out / "summary.json"
     cmd = [*_cli(), "run", str(GRAPH), "--var", f"port={port}", "--var", f"out={run_out}", "--var", "view_port=0",
            "--var", f"azimuth_offset_deg={offset}",
@@ -158,6 +166,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--azimuth-offset-deg", type=float, default=-2.3,
                     help="the driver's azimuth offset (a dataset folder is served without it: RADIATE -2.3, "
                     "Oxford -0.95; default -2.3)")
+    ap.add_argument("--cut-after", type=float, default=10.0,
+                    help="one more run at the first speed with the emulator cutting the connection every S seconds "
+                    "(a lost link: survived and reported; 0: none; default 10)")
     ap.add_argument("--out", default="out/bench-live", help="folder of the runs (recordings, summaries, logs)")
     args = ap.parse_args(argv)
     if not Path(args.source).exists():
@@ -188,6 +199,18 @@ def main(argv: list[str] | None = None) -> int:
     for topic, c in cmp.items():
         print(f"live vs replay, {topic}: {c['identical']} of {c['common']} common poses identical "
               f"(live {c['live']}, replayed {c['replayed']}), largest difference {c['max_diff_m']:.3g} m")
+    cut: dict[str, Any] = {}
+    if args.cut_after > 0:
+        s = run_live(args.source, speeds[0], args.seconds, out, args.azimuth_offset_deg, args.cut_after)
+        f = figures(s, speeds[0])
+        radar = s.get("extra", {}).get("radar", {})
+        cut = {"live_cut_every_s": args.cut_after, "live_cut_reconnects": f["reconnects"],
+               "live_cut_turns": f["turns"], "live_cut_turns_lost": f["turns_lost"],
+               "live_cut_turns_dropped": f["turns_dropped"], "live_cut_slam_poses": s["emitted"].get("slam.pose", 0)}
+        print(f"x{speeds[0]:g}, connection cut every {args.cut_after:g} s: exit 0, {f['reconnects']} reconnections, "
+              f"{f['turns']} turns, lost {f['turns_lost']} (said: {radar.get('gaps', 'none')}), dropped "
+              f"{f['turns_dropped']}, R-SLAM poses {cut['live_cut_slam_poses']}; R-SLAM latency "
+              f"{f['slam_median_ms']:.1f} / {f['slam_p99_ms']:.1f} ms")
     rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # the largest child: a graph, mostly
     result = {
         "live_seconds_s": args.seconds, "live_turns": f1["turns"], "live_turns_lost": f1["turns_lost"],
@@ -200,6 +223,7 @@ def main(argv: list[str] | None = None) -> int:
         "live_replay_identical_poses": sum(c["identical"] for c in cmp.values()),
         "live_replay_poses": sum(c["common"] for c in cmp.values()),
         "live_fastest_speed_x": max(ok) if ok else 0.0,
+        **cut,
         "peak_rss_mb": round(rss, 1),
     }
     print(json.dumps(result))
