@@ -153,6 +153,20 @@ def _decode_array(buf: Any, off: int) -> tuple[np.ndarray, int]:
     return arr, off + nbytes
 
 
+def _decode_array_at(buf: Any, off: int, cell: list) -> tuple[np.ndarray, int]:
+    """:func:`_decode_array`, remembering in ``cell`` what the array's header said:
+    ``cell[0] = (header bytes, header length, dtype, count, shape (None: 1-D), bytes of data, the
+    shared empty array or None)``, one tuple so that a thread reads one consistent header. A
+    generated decoder compares the next header at that field with the remembered one and, when
+    equal (every beam of a sensor), skips its parsing."""
+    arr, end = _decode_array(buf, off)
+    nbytes = arr.nbytes
+    hl = end - off - nbytes
+    cell[0] = (bytes(buf[off:off + hl]), hl, arr.dtype, arr.size, None if arr.ndim == 1 else arr.shape, nbytes,
+               arr if arr.size == 0 else None)
+    return arr, end
+
+
 # --- scalars and strings -----------------------------------------------------------------
 
 def _encode_str(v: Any, parts: list) -> None:
@@ -321,8 +335,8 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
 def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
     """One generated function decoding ``cls``: scalar runs by one ``unpack_from``, strings
     and arrays inline, nested messages inlined (a recursive type calls its own decoder)."""
-    env: dict[str, Any] = {"dec_array": _decode_array, "U32": _U32.unpack_from, "U64": _U64.unpack_from,
-                           "new": object.__new__, "setattr_": object.__setattr__}
+    env: dict[str, Any] = {"dec_array_at": _decode_array_at, "U32": _U32.unpack_from, "U64": _U64.unpack_from,
+                           "new": object.__new__, "setattr_": object.__setattr__, "frombuffer": np.frombuffer}
     lines: list[str] = []
     counter = [0]
 
@@ -337,8 +351,20 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
         elif kind == "bytes":
             lines.append(f"{ind}n = U64(buf, off)[0]; off += 8")
             lines.append(f"{ind}{target} = bytes(buf[off:off + n]); off += n")
-        elif kind == "ndarray":
-            lines.append(f"{ind}{target}, off = dec_array(buf, off)")
+        elif kind == "ndarray":  # the header seen last time at this field: no parsing
+            key = f"A_{counter[0]}"
+            counter[0] += 1
+            env[key] = [(None, 0, None, 0, None, 0, None)]  # None: equal to no header
+            lines.append(f"{ind}c = {key}[0]; e = off + c[1]")
+            lines.append(f"{ind}if buf[off:e] == c[0] and e + c[5] <= len(buf):")
+            lines.append(f"{ind}    if c[6] is not None:")
+            lines.append(f"{ind}        {target} = c[6]; off = e")
+            lines.append(f"{ind}    else:")
+            lines.append(f"{ind}        {target} = frombuffer(buf, c[2], c[3], e)")
+            lines.append(f"{ind}        if c[4] is not None: {target} = {target}.reshape(c[4])")
+            lines.append(f"{ind}        off = e + c[5]")
+            lines.append(f"{ind}else:")
+            lines.append(f"{ind}    {target}, off = dec_array_at(buf, off, {key})")
         elif kind == "none":
             lines.append(f"{ind}{target} = None")
         elif kind == "message":
@@ -348,6 +374,8 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
                 counter[0] += 1
                 env[key] = cache[sub]
                 lines.append(f"{ind}{target}, off = {key}.decode_from(buf, off)")
+            elif _internable(sub):
+                interned(sub, target, ind, stack + (sub,))
             else:
                 message_(sub, target, ind, stack + (sub,))
         else:  # an optional scalar
@@ -399,10 +427,52 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
             for n, v in zip(names, values, strict=True):
                 lines.append(f"{ind}setattr_({target}, {n!r}, {v})")
 
+    def interned(c: type, target: str, ind: str, stack: tuple[type, ...]) -> None:
+        """A nested message of scalars and strings (a sensor's configuration, the same in every
+        beam): its bytes are measured (string lengths) and looked up among the last ones decoded;
+        the same bytes give the same (shared) object, decoded once."""
+        key = f"I_{counter[0]}"
+        counter[0] += 1
+        env[key] = {}
+        hints = typing.get_type_hints(c)
+        fixed = 0
+        lines.append(f"{ind}s0 = e = off")
+        for f in dataclasses.fields(c):
+            kind = _field_kind(c, f, hints[f.name])[0]
+            if kind == "str":
+                lines.append(f"{ind}e += {fixed}; e += 4 + U32(buf, e)[0]")
+                fixed = 0
+            else:
+                fixed += struct.calcsize("<" + _SCALAR_FMT[kind])
+        lines.append(f"{ind}e += {fixed}")
+        lines.append(f"{ind}k = bytes(buf[s0:e]) if e <= len(buf) else None")
+        lines.append(f"{ind}{target} = {key}.get(k)")
+        lines.append(f"{ind}if {target} is None:")
+        message_(c, target, ind + "    ", stack)
+        lines.append(f"{ind}    if k is not None:")
+        lines.append(f"{ind}        if len({key}) >= {INTERNED_MAX}: {key}.clear()")
+        lines.append(f"{ind}        {key}[k] = {target}")
+        lines.append(f"{ind}else:")
+        lines.append(f"{ind}    off = e")
+
     message_(cls, "obj", "    ", (cls,))
     src = "def decode_from(buf, off):\n" + "\n".join(lines) + "\n    return obj, off\n"
     exec(compile(src, f"<decoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
     return env["decode_from"]
+
+
+#: distinct values of one nested message of scalars and strings a decoder keeps (then it starts afresh)
+INTERNED_MAX = 64
+
+
+def _internable(c: type) -> bool:
+    """Whether every field of message type ``c`` is a (non-optional) int, float, bool or str."""
+    try:
+        hints = typing.get_type_hints(c)
+        kinds = [_field_kind(c, f, hints[f.name]) for f in dataclasses.fields(c)]
+    except (CodecError, NameError, TypeError):
+        return False
+    return bool(kinds) and all(k in ("int", "float", "bool", "str") and not opt for k, opt, _ in kinds)
 
 
 def _schema_json(root: dict[str, Any], definitions: dict[str, Any]) -> bytes:
