@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import operator
 import struct
 import types
 import typing
@@ -313,6 +314,8 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
             subc = _compile(sub, cache)
             enc, dec = (lambda v, p, c=subc: c.encode_into(v, p)), (
                 lambda b, o, c=subc: c.decode_from(b, o))
+            if _internable(sub):
+                enc = _memo_encoder(sub, subc)
         else:
             enc, dec = _LEAF[kind]
         if optional:
@@ -330,6 +333,31 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
     decode_from = _generate_decoder(cls, cache)
     comp.encode_into, comp.decode_from = encode_into, decode_from
     return comp
+
+
+def _memo_encoder(sub: type, subc: _Compiled) -> Encoder:
+    """The encoder of a nested message of scalars and strings (a sensor's configuration, the same
+    object in every beam): it keeps its last bytes and gives them again while every field holds
+    the very same immutable object as then (identity: -0.0 and 0.0, or 1 and True, never share)."""
+    names = tuple(f.name for f in dataclasses.fields(sub))
+    get = attrgetter(*names) if len(names) > 1 else (lambda v, n=names[0]: (getattr(v, n),))
+    cell: list[Any] = [None]
+    is_, scalars = operator.is_, (int, float, str, bool)
+
+    def enc(v: Any, parts: list) -> None:
+        vals = get(v)
+        last = cell[0]
+        if last is not None and all(map(is_, vals, last[0])):
+            parts.append(last[1])
+            return
+        mine: list = []
+        subc.encode_into(v, mine)
+        b = b"".join(mine)
+        if all([type(x) in scalars for x in vals]):
+            cell[0] = (vals, b)
+        parts.append(b)
+
+    return enc
 
 
 def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
