@@ -283,19 +283,18 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
         raise CodecError(f"{cls!r} is not a @message dataclass")
     comp = cache[cls] = _Compiled()  # registered first: recursive types resolve lazily
     hints = typing.get_type_hints(cls)
-    enc_steps: list[Encoder] = []
     comp.fields = []
     run: list[tuple[str, str]] = []  # pending fixed-size scalars (name, struct char)
+
+    code: list[str] = []  # the generated encoder's lines, one per step
+    env: dict[str, Any] = {}
 
     def flush_run() -> None:
         if not run:
             return
         s = struct.Struct("<" + "".join(c for _, c in run))
-        get = attrgetter(*(n for n, _ in run))
-        if len(run) == 1:
-            enc_steps.append(lambda o, parts: parts.append(s.pack(get(o))))
-        else:
-            enc_steps.append(lambda o, parts: parts.append(s.pack(*get(o))))
+        env[f"R{len(code)}"] = s.pack
+        code.append(f"append(R{len(code)}(" + ", ".join(f"obj.{n}" for n, _ in run) + "))")
         run.clear()
 
     for f in dataclasses.fields(cls):
@@ -320,15 +319,15 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
             enc, dec = _LEAF[kind]
         if optional:
             enc, dec = _optional(enc, dec)
-        get1 = attrgetter(f.name)
-        enc_steps.append(lambda o, parts, e=enc, g=get1: e(g(o), parts))
+        env[f"E{len(code)}"] = enc
+        code.append(f"E{len(code)}(obj.{f.name}, parts)")
     flush_run()
 
-    enc_steps_t = tuple(enc_steps)
+    # one generated function: each scalar run packed by one call, every other field through its encoder
+    src = "def encode_into(obj, parts):\n    append = parts.append\n" + "".join(f"    {c}\n" for c in code)
+    exec(compile(src, f"<encoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
+    encode_into = env["encode_into"]
 
-    def encode_into(obj: Any, parts: list) -> None:
-        for step in enc_steps_t:
-            step(obj, parts)
 
     decode_from = _generate_decoder(cls, cache)
     comp.encode_into, comp.decode_from = encode_into, decode_from
