@@ -327,8 +327,6 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
     src = "def encode_into(obj, parts):\n    append = parts.append\n" + "".join(f"    {c}\n" for c in code)
     exec(compile(src, f"<encoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
     encode_into = env["encode_into"]
-
-
     decode_from = _generate_decoder(cls, cache)
     comp.encode_into, comp.decode_from = encode_into, decode_from
     return comp
