@@ -66,7 +66,7 @@ def _run_once(path: str, end_s: float) -> tuple[int, float]:
 
 _STAGES = {  # (file suffix, function) -> stage; the rest of the run is the executor's
     "read": [("io/_reader.py", "_chunk_messages"), ("io/_reader.py", "_load")],
-    "decode": [("io/_reader.py", "_emit")],
+    "decode": [("io/_reader.py", "_emit"), (">", "decode_from")],  # a generated decoder: "<decoder of RadarBeam>"
     "freeze": [("msgs/_base.py", "freeze_fields"), ("msgs/_base.py", "freeze")],
     "validity": [("sensors.py", "invalid_reason")],
 }

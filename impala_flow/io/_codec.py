@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import operator
 import struct
 import types
 import typing
@@ -153,6 +154,20 @@ def _decode_array(buf: Any, off: int) -> tuple[np.ndarray, int]:
     return arr, off + nbytes
 
 
+def _decode_array_at(buf: Any, off: int, cell: list) -> tuple[np.ndarray, int]:
+    """:func:`_decode_array`, remembering in ``cell`` what the array's header said:
+    ``cell[0] = (header bytes, header length, dtype, count, shape (None: 1-D), bytes of data, the
+    shared empty array or None)``, one tuple so that a thread reads one consistent header. A
+    generated decoder compares the next header at that field with the remembered one and, when
+    equal (every beam of a sensor), skips its parsing."""
+    arr, end = _decode_array(buf, off)
+    nbytes = arr.nbytes
+    hl = end - off - nbytes
+    cell[0] = (bytes(buf[off:off + hl]), hl, arr.dtype, arr.size, None if arr.ndim == 1 else arr.shape, nbytes,
+               arr if arr.size == 0 else None)
+    return arr, end
+
+
 # --- scalars and strings -----------------------------------------------------------------
 
 def _encode_str(v: Any, parts: list) -> None:
@@ -268,19 +283,18 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
         raise CodecError(f"{cls!r} is not a @message dataclass")
     comp = cache[cls] = _Compiled()  # registered first: recursive types resolve lazily
     hints = typing.get_type_hints(cls)
-    enc_steps: list[Encoder] = []
     comp.fields = []
     run: list[tuple[str, str]] = []  # pending fixed-size scalars (name, struct char)
+
+    code: list[str] = []  # the generated encoder's lines, one per step
+    env: dict[str, Any] = {}
 
     def flush_run() -> None:
         if not run:
             return
         s = struct.Struct("<" + "".join(c for _, c in run))
-        get = attrgetter(*(n for n, _ in run))
-        if len(run) == 1:
-            enc_steps.append(lambda o, parts: parts.append(s.pack(get(o))))
-        else:
-            enc_steps.append(lambda o, parts: parts.append(s.pack(*get(o))))
+        env[f"R{len(code)}"] = s.pack
+        code.append(f"append(R{len(code)}(" + ", ".join(f"obj.{n}" for n, _ in run) + "))")
         run.clear()
 
     for f in dataclasses.fields(cls):
@@ -299,30 +313,55 @@ def _compile(cls: type, cache: dict[type, _Compiled]) -> _Compiled:
             subc = _compile(sub, cache)
             enc, dec = (lambda v, p, c=subc: c.encode_into(v, p)), (
                 lambda b, o, c=subc: c.decode_from(b, o))
+            if _internable(sub):
+                enc = _memo_encoder(sub, subc)
         else:
             enc, dec = _LEAF[kind]
         if optional:
             enc, dec = _optional(enc, dec)
-        get1 = attrgetter(f.name)
-        enc_steps.append(lambda o, parts, e=enc, g=get1: e(g(o), parts))
+        env[f"E{len(code)}"] = enc
+        code.append(f"E{len(code)}(obj.{f.name}, parts)")
     flush_run()
 
-    enc_steps_t = tuple(enc_steps)
-
-    def encode_into(obj: Any, parts: list) -> None:
-        for step in enc_steps_t:
-            step(obj, parts)
-
+    # one generated function: each scalar run packed by one call, every other field through its encoder
+    src = "def encode_into(obj, parts):\n    append = parts.append\n" + "".join(f"    {c}\n" for c in code)
+    exec(compile(src, f"<encoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
+    encode_into = env["encode_into"]
     decode_from = _generate_decoder(cls, cache)
     comp.encode_into, comp.decode_from = encode_into, decode_from
     return comp
 
 
+def _memo_encoder(sub: type, subc: _Compiled) -> Encoder:
+    """The encoder of a nested message of scalars and strings (a sensor's configuration, the same
+    object in every beam): it keeps its last bytes and gives them again while every field holds
+    the very same immutable object as then (identity: -0.0 and 0.0, or 1 and True, never share)."""
+    names = tuple(f.name for f in dataclasses.fields(sub))
+    get = attrgetter(*names) if len(names) > 1 else (lambda v, n=names[0]: (getattr(v, n),))
+    cell: list[Any] = [None]
+    is_, scalars = operator.is_, (int, float, str, bool)
+
+    def enc(v: Any, parts: list) -> None:
+        vals = get(v)
+        last = cell[0]
+        if last is not None and all(map(is_, vals, last[0])):
+            parts.append(last[1])
+            return
+        mine: list = []
+        subc.encode_into(v, mine)
+        b = b"".join(mine)
+        if all([type(x) in scalars for x in vals]):
+            cell[0] = (vals, b)
+        parts.append(b)
+
+    return enc
+
+
 def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
     """One generated function decoding ``cls``: scalar runs by one ``unpack_from``, strings
     and arrays inline, nested messages inlined (a recursive type calls its own decoder)."""
-    env: dict[str, Any] = {"dec_array": _decode_array, "U32": _U32.unpack_from, "U64": _U64.unpack_from,
-                           "new": object.__new__, "setattr_": object.__setattr__}
+    env: dict[str, Any] = {"dec_array_at": _decode_array_at, "U32": _U32.unpack_from, "U64": _U64.unpack_from,
+                           "new": object.__new__, "setattr_": object.__setattr__, "frombuffer": np.frombuffer}
     lines: list[str] = []
     counter = [0]
 
@@ -337,8 +376,20 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
         elif kind == "bytes":
             lines.append(f"{ind}n = U64(buf, off)[0]; off += 8")
             lines.append(f"{ind}{target} = bytes(buf[off:off + n]); off += n")
-        elif kind == "ndarray":
-            lines.append(f"{ind}{target}, off = dec_array(buf, off)")
+        elif kind == "ndarray":  # the header seen last time at this field: no parsing
+            key = f"A_{counter[0]}"
+            counter[0] += 1
+            env[key] = [(None, 0, None, 0, None, 0, None)]  # None: equal to no header
+            lines.append(f"{ind}c = {key}[0]; e = off + c[1]")
+            lines.append(f"{ind}if buf[off:e] == c[0] and e + c[5] <= len(buf):")
+            lines.append(f"{ind}    if c[6] is not None:")
+            lines.append(f"{ind}        {target} = c[6]; off = e")
+            lines.append(f"{ind}    else:")
+            lines.append(f"{ind}        {target} = frombuffer(buf, c[2], c[3], e)")
+            lines.append(f"{ind}        if c[4] is not None: {target} = {target}.reshape(c[4])")
+            lines.append(f"{ind}        off = e + c[5]")
+            lines.append(f"{ind}else:")
+            lines.append(f"{ind}    {target}, off = dec_array_at(buf, off, {key})")
         elif kind == "none":
             lines.append(f"{ind}{target} = None")
         elif kind == "message":
@@ -348,6 +399,8 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
                 counter[0] += 1
                 env[key] = cache[sub]
                 lines.append(f"{ind}{target}, off = {key}.decode_from(buf, off)")
+            elif _internable(sub):
+                interned(sub, target, ind, stack + (sub,))
             else:
                 message_(sub, target, ind, stack + (sub,))
         else:  # an optional scalar
@@ -399,10 +452,52 @@ def _generate_decoder(cls: type, cache: dict[type, _Compiled]) -> Decoder:
             for n, v in zip(names, values, strict=True):
                 lines.append(f"{ind}setattr_({target}, {n!r}, {v})")
 
+    def interned(c: type, target: str, ind: str, stack: tuple[type, ...]) -> None:
+        """A nested message of scalars and strings (a sensor's configuration, the same in every
+        beam): its bytes are measured (string lengths) and looked up among the last ones decoded;
+        the same bytes give the same (shared) object, decoded once."""
+        key = f"I_{counter[0]}"
+        counter[0] += 1
+        env[key] = {}
+        hints = typing.get_type_hints(c)
+        fixed = 0
+        lines.append(f"{ind}s0 = e = off")
+        for f in dataclasses.fields(c):
+            kind = _field_kind(c, f, hints[f.name])[0]
+            if kind == "str":
+                lines.append(f"{ind}e += {fixed}; e += 4 + U32(buf, e)[0]")
+                fixed = 0
+            else:
+                fixed += struct.calcsize("<" + _SCALAR_FMT[kind])
+        lines.append(f"{ind}e += {fixed}")
+        lines.append(f"{ind}k = bytes(buf[s0:e]) if e <= len(buf) else None")
+        lines.append(f"{ind}{target} = {key}.get(k)")
+        lines.append(f"{ind}if {target} is None:")
+        message_(c, target, ind + "    ", stack)
+        lines.append(f"{ind}    if k is not None:")
+        lines.append(f"{ind}        if len({key}) >= {INTERNED_MAX}: {key}.clear()")
+        lines.append(f"{ind}        {key}[k] = {target}")
+        lines.append(f"{ind}else:")
+        lines.append(f"{ind}    off = e")
+
     message_(cls, "obj", "    ", (cls,))
     src = "def decode_from(buf, off):\n" + "\n".join(lines) + "\n    return obj, off\n"
     exec(compile(src, f"<decoder of {cls.__qualname__}>", "exec"), env)  # noqa: S102 - our own source
     return env["decode_from"]
+
+
+#: distinct values of one nested message of scalars and strings a decoder keeps (then it starts afresh)
+INTERNED_MAX = 64
+
+
+def _internable(c: type) -> bool:
+    """Whether every field of message type ``c`` is a (non-optional) int, float, bool or str."""
+    try:
+        hints = typing.get_type_hints(c)
+        kinds = [_field_kind(c, f, hints[f.name]) for f in dataclasses.fields(c)]
+    except (CodecError, NameError, TypeError):
+        return False
+    return bool(kinds) and all(k in ("int", "float", "bool", "str") and not opt for k, opt, _ in kinds)
 
 
 def _schema_json(root: dict[str, Any], definitions: dict[str, Any]) -> bytes:

@@ -121,13 +121,27 @@ def _text(v: Any, max_array: int) -> str:
     if v is None:
         return "null"
     if t is np.ndarray:
-        if v.size <= max_array and v.dtype.kind in "biuf":
-            return "[]" if v.ndim == 1 and v.size == 0 else _dumps(_nested(v.tolist()))
-        return '{"shape":[' + ",".join([int.__repr__(int(n)) for n in v.shape]) + '],"dtype":' + _str(v.dtype.str) + "}"
+        return _array_text(v, max_array)
     enc = _encoders.get((t, max_array))
     if enc is not None or t in _fields or (dataclasses.is_dataclass(v) and not isinstance(v, type)):
         return (enc or _encoder(t, max_array))(v)
     return _dumps(_plain(v, max_array))
+
+
+_shape_texts: dict[tuple[tuple[int, ...], np.dtype], str] = {}  # (shape, dtype) -> the text of a large array
+
+
+def _array_text(v: np.ndarray, max_array: int) -> str:
+    """:func:`_text` of an array: its values, or (too large, or not numbers) its shape and dtype."""
+    if v.size <= max_array and v.dtype.kind in "biuf":
+        return "[]" if v.ndim == 1 and v.size == 0 else _dumps(_nested(v.tolist()))
+    key = (v.shape, v.dtype)
+    out = _shape_texts.get(key)
+    if out is None:
+        out = '{"shape":[' + ",".join([int.__repr__(int(n)) for n in v.shape]) + '],"dtype":' + _str(v.dtype.str) + "}"
+        if len(_shape_texts) < 4096:
+            _shape_texts[key] = out
+    return out
 
 
 def _encoder(t: type, max_array: int) -> Any:
@@ -154,7 +168,8 @@ def _encoder(t: type, max_array: int) -> Any:
                 "    return out"]
     elif names:  # a float or int field's common case inline, anything else (NaN too) through _text
         inline = {float: "(fr(@) if type(@) is float and @ - @ == 0.0 else text(@, m))",
-                  int: "(ir(@) if type(@) is int else text(@, m))"}
+                  int: "(ir(@) if type(@) is int else text(@, m))",
+                  np.ndarray: "(atext(@, m) if type(@) is ndarray else text(@, m))"}
         src.append("    return " + " + ".join(
             f"{k!r} + " + inline.get(hints.get(n), "text(@, m)").replace("@", f"v.{n}")
             for k, n in zip(keys, names, strict=True)) + ' + "}"')
@@ -162,7 +177,7 @@ def _encoder(t: type, max_array: int) -> Any:
         src.append('    return "{}"')
     scope: dict[str, Any] = {"text": _text, "m": max_array, "get": operator.attrgetter(*names) if names else None,
                              "cell": [None], "is_": operator.is_, "scalars": _SCALARS,
-                             "fr": float.__repr__, "ir": int.__repr__}
+                             "fr": float.__repr__, "ir": int.__repr__, "atext": _array_text, "ndarray": np.ndarray}
     if memo and len(names) == 1:
         scope["get"] = lambda v, n=names[0]: (getattr(v, n),)
     exec("\n".join(src), scope)  # noqa: S102 - generated from field names (identifiers) only

@@ -500,6 +500,8 @@ class MissionReader:
         comes (``refs`` sorted by (start time, offset))."""
         heap: list[tuple[int, int, int, tuple]] = []
         n = len(refs)
+        # every channel decoded by a codec (no adapter, not raw): the chunks' messages decoded inline
+        plain = all(d is not None and not hasattr(d, "adapt") for _, d in wanted.values())
         for i, ref in enumerate(refs):
             while heap and heap[0][0] < ref.start_ns:  # earlier than anything still unread
                 yield self._emit(heapq.heappop(heap)[3], wanted)
@@ -509,8 +511,17 @@ class MissionReader:
             nxt = refs[i + 1] if i + 1 < n else None
             if not heap and ordered and (nxt is None or ref.end_ns < nxt.start_ns or (
                     ref.end_ns == nxt.start_ns and ref.offset < nxt.offset)):
-                for it in items:  # fast path: no overlap with what comes next
-                    yield self._emit(it, wanted)
+                if not plain:
+                    for it in items:  # fast path: no overlap with what comes next
+                        yield self._emit(it, wanted)
+                    continue
+                for t, cid, seq, payload in items:  # the same, decoded inline (as _emit)
+                    topic, decode = wanted[cid]
+                    try:
+                        data = decode(payload)
+                    except (ValueError, CodecError) as e:
+                        raise CodecError(f"{self.path}: topic {topic!r} at t={t} ns: {e}") from None
+                    yield Recorded(topic, t, data, seq)
                 continue
             for k, it in enumerate(items):
                 heapq.heappush(heap, (it[0], ref.offset, k, it))

@@ -150,12 +150,13 @@ class Replayer(Source):
                 yield first + offset, TIME_JUMP, offset
                 for comp in self._downstream():
                     comp.on_time_jump(offset)
-            for m in r.messages(self.ports, lo, hi):
+            ports = self.ports
+            for topic, t, data, _ in r.messages(ports, lo, hi):
                 if k == 0:
-                    first = m.t_ns if first is None else first
-                    last, n = m.t_ns, n + 1
+                    first = t if first is None else first
+                    last, n = t, n + 1
                 self.replayed += 1
-                yield m.t_ns + offset, self.ports[m.topic], m.data
+                yield t + offset, ports[topic], data
             k += 1
 
     def duration_hint_ns(self) -> int | None:

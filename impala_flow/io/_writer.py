@@ -202,8 +202,9 @@ class MissionWriter:
         if self.native:
             parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
             size = 0
-            for p in parts:
-                size += len(p) if type(p) is bytes else memoryview(p).nbytes
+            for p in parts:  # bytes, or arrays' memoryviews
+                c = type(p)
+                size += len(p) if c is bytes else p.nbytes if c is memoryview else memoryview(p).nbytes
             self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)

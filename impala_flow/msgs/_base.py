@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import typing
 from collections.abc import Callable
 from operator import attrgetter
 from typing import Any, TypeVar
@@ -127,6 +128,8 @@ def _freezer_for(t: type) -> Callable[[Any], None]:
             def values(obj: Any) -> Any:
                 return obj.__dict__.values()  # every field (and any attribute added later)
 
+        flat = _flat  # nested messages of scalars only (a beam's config): skipped while they hold just their fields
+
         def freeze_fields(obj: Any) -> None:
             for v in values(obj):  # the common kinds inline: no call per scalar field
                 c = type(v)
@@ -134,14 +137,32 @@ def _freezer_for(t: type) -> Callable[[Any], None]:
                     if v.flags.writeable:
                         v.flags.writeable = False
                 elif c not in immutable:
-                    freeze(v)
+                    n = flat.get(c)
+                    if n is None or len(v.__dict__) != n:
+                        freeze(v)
 
+        if not any("__slots__" in k.__dict__ for k in t.__mro__) and _scalar_fields(t):
+            _flat[t] = len(names)
         return freeze_fields
     if issubclass(t, (tuple, list)):
         return lambda seq: [freeze(v) for v in seq] and None
     if issubclass(t, dict):
         return lambda d: [freeze(v) for v in d.values()] and None
     return _noop
+
+
+_flat: dict[type, int] = {}  # dataclass whose declared fields are all immutable scalars -> its field count
+
+
+def _scalar_fields(t: type) -> bool:
+    """Whether every declared field of dataclass ``t`` is an int, float, str, bytes or bool (its
+    instances then hold no array while their ``__dict__`` holds just those fields)."""
+    try:
+        hints = typing.get_type_hints(t)
+    except Exception:  # noqa: BLE001 - unresolvable annotations: frozen field by field
+        return False
+    fields = dataclasses.fields(t)
+    return bool(fields) and all(hints.get(f.name) in (int, float, str, bytes, bool) for f in fields)
 
 
 def freezer_for(t: type) -> Callable[[Any], None] | None:

@@ -142,13 +142,27 @@ class RadarBeam:
 
     def invalid_reason(self) -> str | None:
         """:func:`~impala_flow.msgs.invalid_fields`, with a fast path for the valid beam (the
-        common case, checked on every beam entering an input)."""
+        common case, checked on every beam entering an input): the spectra's finite values
+        counted (``count_nonzero`` of ``isfinite``: half the cost of ``isfinite().all()``), and the
+        configuration checked once per object. Every beam of a sensor carries the same
+        RadarConfig object (a replayed recording's too: its decoder shares equal ones), which
+        is never changed once its beams are out, so the last one found valid is remembered."""
         up, down = self.up, self.down
-        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or np.isfinite(up).all())
-                and (down.size == 0 or down.dtype.kind not in "fc" or np.isfinite(down).all())):
-            why = self.config.invalid_reason()
-            return None if why is None else f"config: {why}"
+        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or _count_nonzero(_isfinite(up)) == up.size)
+                and (down.size == 0 or down.dtype.kind not in "fc" or _count_nonzero(_isfinite(down)) == down.size)):
+            config = self.config
+            if config is _valid_config[0]:
+                return None
+            why = config.invalid_reason()
+            if why is None:
+                _valid_config[0] = config
+                return None
+            return f"config: {why}"
         return invalid_fields(self)
+
+
+_isfinite, _count_nonzero = np.isfinite, np.count_nonzero
+_valid_config: list[RadarConfig | None] = [None]  # the last RadarConfig a beam's check found valid
 
 
 @message("impala.RadarBeam", version=1)
