@@ -108,10 +108,9 @@ def normalise_beams(power: np.ndarray) -> np.ndarray:
     is 0 (blanked, all zero) is divided by its smallest positive power, or left at 0."""
     p = np.asarray(power, np.float32)
     if p.ndim == 2 and p.shape[1]:
-        from .._median_jit import row_medians  # here: numba is imported at the first turn, not with the plugin
+        from .._median_jit import medians  # here: numba is imported at the first turn, not with the plugin
 
-        floor = np.empty(p.shape[0], np.float32)
-        row_medians(np.ascontiguousarray(p), floor)  # np.median(p, axis=1) bit for bit, RADIATE 4.4 -> 2.1 ms
+        floor = medians(p)  # np.median(p, axis=1) bit for bit, RADIATE 4.4 -> 2.1 ms
     else:
         floor = np.median(p, axis=1)
     bad = ~(floor > 0)
