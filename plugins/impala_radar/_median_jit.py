@@ -62,21 +62,29 @@ def row_middles(p, lower, upper, redo):  # pragma: no cover - compiled
     buf = np.empty(n, p.dtype)
     keys = np.empty(n, np.uint32)
     counts = np.zeros(512, np.int64)
-    sign = np.uint32(0x80000000)
+    sign, low, shift = np.uint32(0x80000000), np.uint32(0x7FFFFFFF), np.uint32(31)
     k = n // 2
     n_redo = 0
     for b in range(p.shape[0]):
-        odd = False
+        nan = False
         counts[:] = 0
-        for j in range(n):
+        for j in range(n):  # by exponent: the bit patterns of non-negative values sort as the values
             x = p[b, j]
+            nan |= x != x
             u = bits[b, j]
-            odd |= (x != x) | (u == sign)
-            key = ~u if u & sign else u | sign  # monotone in the value
-            keys[j] = key
-            counts[key >> 23] += 1
-        redo[b] = odd or n == 0
-        if redo[b]:
+            keys[j] = u
+            counts[u >> 23] += 1
+        odd = nan or n == 0
+        if not odd and counts[256:].sum():  # negative values or -0.0: by sign and exponent
+            counts[:] = 0
+            for j in range(n):
+                u = bits[b, j]
+                key = u ^ (((u >> shift) * low) | sign)  # ~u for a negative value, else u | sign: monotone
+                odd |= key == low  # -0.0
+                keys[j] = key
+                counts[key >> 23] += 1
+        redo[b] = odd
+        if odd:
             n_redo += 1
             continue
         before, e = 0, 0
