@@ -94,7 +94,8 @@ def read_cells(power, order, spans, r_read, r, row, offset_m, per_bin, r_min, gr
     (``power``'s beams in azimuth ``order`` with a wrap row each side, as
     :meth:`AzimuthTable.rows`) read at bin (r_read - offset) per_bin and fractional row
     ``row`` as ``cv2.remap(..., INTER_LINEAR, BORDER_CONSTANT 0)`` reads it, bit for bit (fused
-    multiply-adds); 0 where the cell was nearer than r_min to its beam (``grid`` comes zeroed)."""
+    multiply-adds); 0 where the cell was nearer than r_min to its beam and off the disk (every
+    cell of ``grid`` is written)."""
     n_beams, n_bins = power.shape
     n_rows = n_beams + 2
     w = n_bins + 3  # the rows in a zero frame: one column left, two right, one row above and below
@@ -104,6 +105,7 @@ def read_cells(power, order, spans, r_read, r, row, offset_m, per_bin, r_min, gr
         for b in range(n_bins):
             pad[(a + 1) * w + b + 1] = src[b]
     zeros_at = n_bins + 1  # four zeros: what a cell reads when its four neighbours are all outside
+    zero = np.float32(0.0)
     m = grid.shape[1]
     bfx, bfy, boff = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.uint64)
     wu, one = np.uint64(w), np.uint64(1)  # unsigned offsets: no negative-index wrap in the gathers
@@ -121,7 +123,10 @@ def read_cells(power, order, spans, r_read, r, row, offset_m, per_bin, r_min, gr
             bfy[t] = sy - fy
             inside = (ix >= -1) & (ix < n_bins) & (iy >= -1) & (iy < n_rows) & (r0[t] >= r_min)
             boff[t] = np.uint64((iy + 1) * w + ix + 1) if inside else np.uint64(zeros_at)
-        g = grid[j, lo:lo + n]
+        row_j = grid[j]
+        row_j[:lo] = zero  # off the disk
+        row_j[lo + n:] = zero
+        g = row_j[lo:lo + n]
         for t in range(n):
             o = boff[t]
             fx = bfx[t]

@@ -352,8 +352,7 @@ def scan_to_grid(power: np.ndarray, azimuth_rad, beam_poses_xyt, range_per_bin_m
     else:
         r, row = disk.r0, disk.row0
         r_read = disk.r_read0(height_m) if height_m > 0.0 else r
-    grid = np.zeros(plan.r.shape, np.float32)
-    # cells off the disk or blanked at acquisition stay 0
+    grid = np.empty(plan.r.shape, np.float32)  # cells off the disk or blanked at acquisition: 0
     read_cells(np.ascontiguousarray(power, np.float32), table.order, disk.spans, r_read, r, row, f32(range_offset_m),
                f32(1.0 / range_per_bin_m), f32(range_min_m), grid)
     origin = -n_half * cell_m
