@@ -54,14 +54,15 @@ def row_middles(p, lower, upper, redo):  # pragma: no cover - compiled
     """The two middle values of each row (the same one for an odd length), np.median's: its
     median is their half sum for an even length, the value itself otherwise. A row is first
     binned by the sign and exponent of its values (their bit patterns, the negative ones'
-    inverted, sort as the values do): only the bin holding the middle is selected in
-    (quickselect). A row holding a NaN or -0.0 (equal to 0.0: which one numpy's selection
-    returns is its own) is flagged in ``redo`` instead; returns how many (see :func:`medians`)."""
+    inverted, sort as the values do), then the middle's bin by the first mantissa bits: only
+    the values of that group are selected in (quickselect). A row holding a NaN or -0.0
+    (equal to 0.0: which one numpy's selection returns is its own) is flagged in ``redo``
+    instead; returns how many (see :func:`medians`)."""
     n = p.shape[1]
     bits = p.view(np.uint32)
     buf = np.empty(n, p.dtype)
     keys = np.empty(n, np.uint32)
-    counts = np.zeros(512, np.int64)
+    counts, sub = np.zeros(512, np.int64), np.zeros(128, np.int64)
     sign, low, shift = np.uint32(0x80000000), np.uint32(0x7FFFFFFF), np.uint32(31)
     k = n // 2
     n_redo = 0
@@ -91,9 +92,19 @@ def row_middles(p, lower, upper, redo):  # pragma: no cover - compiled
         while before + counts[e] <= k:
             before += counts[e]
             e += 1
-        m = 0
+        # then by the first 7 bits of the mantissa within that bin
+        sub[:] = 0
         for j in range(n):
             if (keys[j] >> 23) == e:
+                sub[(keys[j] >> 16) & 127] += 1
+        s = 0
+        while before + sub[s] <= k:
+            before += sub[s]
+            s += 1
+        group = (np.uint32(e) << 7) | np.uint32(s)
+        m = 0
+        for j in range(n):
+            if (keys[j] >> 16) == group:
                 buf[m] = p[b, j]
                 m += 1
         hi = _select(buf, m, k - before)
@@ -102,17 +113,13 @@ def row_middles(p, lower, upper, redo):  # pragma: no cover - compiled
             lower[b] = hi
         elif k - before > 0:
             lower[b] = _max_below(buf, k - before)
-        else:  # the largest value of the nearest non-empty bin below
-            e2 = e - 1
-            while counts[e2] == 0:
-                e2 -= 1
+        else:  # the largest value below the group: the keys sort as the values
             lo = np.float32(-np.inf)
             for j in range(n):
-                if (keys[j] >> 23) == e2 and p[b, j] > lo:
+                if (keys[j] >> 16) < group and p[b, j] > lo:
                     lo = p[b, j]
             lower[b] = lo
     return n_redo
-
 
 def medians(p: np.ndarray, of: np.ndarray | None = None) -> np.ndarray:
     """``np.median(p, axis=1)`` of a 2-D float32 array, bit for bit; with ``of`` (float32, p's
