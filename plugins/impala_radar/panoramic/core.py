@@ -10,11 +10,14 @@ range give the fractional beam and bin read. One fixed-point step suffices: neig
 beams' poses differ by v / (B f_rot) (1.4 cm at 5 m/s), except across the turn's seam
 (first/last beam), where the image itself is discontinuous (the trochoid does not close).
 What the beam azimuths and the grid fix (each cell's nominal beam, its bearing's row without
-motion) is kept while the turns repeat them; the per-cell arithmetic runs in compiled loops
-(:mod:`._jit`, numba), bit for bit the float32 formula, with OpenCV for the polar coordinates
-and the bilinear read (graphs/oxford.yaml's settings on RADIATE turns: 111 -> 28 ms of CPU per
-turn on a loaded machine, bench/frontend.py; the first grid compiles the loops once per machine,
-2 s, then loads them from numba's cache, 0.5 s with the import).
+motion, the cells on the disk) is kept while the turns repeat them; the per-cell arithmetic
+runs in two compiled loops over the disk's cells only (:mod:`._jit`, numba), bit for bit the
+float32 formula of OpenCV's ``cartToPolar`` and ``remap`` that it replaces, with
+``cv2.magnitude`` kept for the ground range (IPP's rounding). graphs/oxford.yaml's settings on
+RADIATE turns: scan_to_grid 16.7 -> 10.8 ms of CPU per turn (111 before issue 26), the
+component 21 -> 15 ms, measured alternately on a loaded machine (bench/frontend.py); the
+first grid compiles the loops once per machine, a few seconds, then loads them from numba's
+cache, 0.5 s with the import.
 
 Doppler compensation: the up and down spectra of a static target sit at f_r +- f_d with
 f_d = 2 V f0 / c, V = -v cos(theta) (eq. 2, 7); shifting each beam's up spectrum by -f_d
@@ -110,7 +113,7 @@ def normalise_beams(power: np.ndarray) -> np.ndarray:
     if p.ndim == 2 and p.shape[1]:
         from .._median_jit import medians  # here: numba is imported at the first turn, not with the plugin
 
-        floor = medians(p)  # np.median(p, axis=1) bit for bit, RADIATE 4.4 -> 2.1 ms
+        floor = medians(p)  # np.median(p, axis=1) bit for bit, RADIATE 3.2 -> 1.4 ms
     else:
         floor = np.median(p, axis=1)
     bad = ~(floor > 0)
