@@ -154,7 +154,7 @@ def test_os_cfar_is_the_rank_filter_of_the_training_cells():
 def test_xcorr_lag_terms_are_the_numpy_formula_bit_for_bit():
     """The compiled lag terms of the xcorr prior against the (speeds, beams) numpy formula,
     float32 and float64 correlations, lags of both signs and beyond a row's length."""
-    from impala_radar._xcorr_jit import lag_terms
+    from impala_radar.pairer._jit import lag_terms
     from impala_radar.pairer.core import static_offset_bins
 
     rng = np.random.default_rng(12)

@@ -175,7 +175,7 @@ def xcorr_speed_prior(up_power: np.ndarray, down_power: np.ndarray, azimuth_rad:
                         2 * n, axis=1)  # c[b, lag mod 2n] = sum_k u[k + lag] d[k]
     flat = c.ravel()
     row_start = (np.arange(len(azimuth_rad)) * (2 * n))[None, :]
-    from .._xcorr_jit import lag_terms  # here: numba is imported at the first turn, not with the plugin
+    from ._jit import lag_terms  # here: numba is imported at the first turn, not with the plugin
 
     cos_az = np.cos(np.asarray(azimuth_rad, float))
     scale, per = 4.0 * config.f0_hz, SPEED_OF_LIGHT_MPS * config.bin_hz
