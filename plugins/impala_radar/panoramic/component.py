@@ -167,7 +167,8 @@ class PanoramicBuilder(Component):
         # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
         # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
         power = np.ones((4, 8), np.float32)
-        scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), np.zeros((4, 3)), 1.0, 1.0, 4.0)
+        for poses in (np.zeros((4, 3)), np.full((4, 3), 0.01)):  # both loops: without and with motion
+            scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), poses, 1.0, 1.0, 4.0, 0.5)
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
