@@ -254,9 +254,9 @@ class _Disk:
         count = on.sum(axis=1)
         start = np.where(count > 0, on.argmax(axis=1), 0)
         self.spans = np.column_stack([start, start + count]).astype(np.int64)
-        for j in np.flatnonzero(count):  # a row's disk cells form one run
-            if not on[j, start[j]:start[j] + count[j]].all():
-                raise ValueError("the disk's cells of a grid row are not contiguous")
+        last = on.shape[1] - 1 - on[:, ::-1].argmax(axis=1)
+        if np.any((count > 0) & (last - start + 1 != count)):  # a row's disk cells form one run
+            raise ValueError("the disk's cells of a grid row are not contiguous")
         self.index = np.flatnonzero(on.ravel())  # row-major: the packed order
         self.n = len(self.index)
         self.r0 = self.packed(plan.r)
