@@ -11,7 +11,8 @@ compensation + polar -> 0.2 m grid; SpeckleFilter = 4-look co-registration + ave
 RADIATE (real Navtech turns of an imported mission, ``--radiate``): the radar.PanoramicBuilder
 component itself, fed beam by beam with graphs/oxford.yaml's settings (0.1 m cells, 60 m,
 beam_median, motion-corrected with the truth's velocity through its ``twist`` input); its
-cost is the CPU time spent inside the component, split by stage.
+cost is the CPU time spent inside the component, split by stage (and scan_to_grid by its
+compiled loops); each image is let go at once, as R-SLAM and FMT do.
 
 Times are CPU time of this thread (``time.thread_time``: the machine may be shared), the
 median over turns of the best of ``--repeat`` runs (Beynes) or of each turn (RADIATE); the
@@ -41,6 +42,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
+from impala_flow import Component, Input  # noqa: E402
 from impala_flow.msgs import Grid, Pose2D, Twist2D  # noqa: E402
 from impala_radar.ego_velocity.core import fit_ego_velocity  # noqa: E402
 from impala_radar.pairer import core as pairer_core  # noqa: E402
@@ -236,6 +238,21 @@ def _radiate_samples(mission: Path, turns: int) -> tuple[list, int]:
     return samples, len(done)
 
 
+class _ImageCounter(Component):
+    """Takes each image and lets it go, as the graph's consumers (R-SLAM, FMT) do: a sink that
+    kept them all would make every new grid fresh memory (page faults: about 3 ms a turn for
+    graphs/oxford.yaml's 1201 x 1201 grid) and hold 6 MB a turn."""
+
+    x = Input(Grid, maxsize=8)
+
+    def start(self) -> None:
+        self.images = 0
+
+    def process(self, t: int) -> None:
+        self.x.take()
+        self.images += 1
+
+
 PANORAMIC_STAGES = ["integrate_poses", "doppler_compensated_power", "normalise_beams", "scan_to_grid"]
 
 
@@ -245,7 +262,7 @@ def bench_panoramic_radiate(mission_path=RADIATE_DEFAULT, turns: int = 100) -> d
     beam's ``process`` included) and the split by stage (mean ms per turn), both without the
     first turn (``first_turn_ms``: it builds the cached grid geometry and loads or compiles
     the numba loops)."""
-    from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+    from impala_flow.testing import ScriptedSource, run_components
 
     cv2.setNumThreads(1)
     samples, n = _radiate_samples(Path(mission_path), turns)
@@ -253,6 +270,7 @@ def bench_panoramic_radiate(mission_path=RADIATE_DEFAULT, turns: int = 100) -> d
     per_turn: list[float] = []
     spent = [0.0]
     acc: dict[str, float] = defaultdict(float)
+    grid_acc: dict[str, float] = defaultdict(float)  # inside scan_to_grid
     first: dict[str, float] = {}
     process = comp.process
 
@@ -266,18 +284,28 @@ def bench_panoramic_radiate(mission_path=RADIATE_DEFAULT, turns: int = 100) -> d
             spent[0] = 0.0
             if len(per_turn) == 1:  # the first turn builds the cached geometry (and compiles): not in the split
                 first.update(acc)
+                first.update({f"grid.{k}": v for k, v in grid_acc.items()})
 
     comp.process = timed_process
-    sink = CollectingSink("sink")
-    with timed_functions(panoramic_component, PANORAMIC_STAGES, acc):
+    sink = _ImageCounter("sink")
+    with (timed_functions(panoramic_component, PANORAMIC_STAGES, acc),
+          contextlib.ExitStack() as inner):
+        from impala_radar.panoramic import _jit, core
+
+        if hasattr(_jit, "polar_cells"):  # the compiled loops of scan_to_grid and its ground ranges
+            inner.enter_context(timed_functions(_jit, ["polar_cells", "read_cells"], grid_acc))
+            inner.enter_context(timed_functions(core._Disk, ["magnitude"], grid_acc))
         run_components(ScriptedSource("src", samples=samples), comp, sink,
                        connections=["src.beams -> panoramic.beams", "src.twist -> panoramic.twist",
                                     "panoramic.image -> sink.x"])
     steady = per_turn[1:] or per_turn
     split = {k: (v - first.get(k, 0.0)) / len(steady) for k, v in acc.items()} if len(per_turn) > 1 else dict(acc)
     split["beams_and_rest"] = statistics.fmean(steady) - sum(split.values())
+    grid = {k: (v - first.get(f"grid.{k}", 0.0)) / len(steady) for k, v in grid_acc.items()}
+    if grid:
+        grid["rest"] = split["scan_to_grid"] - sum(grid.values())
     return {"ms_per_turn": statistics.median(steady), "first_turn_ms": per_turn[0] if per_turn else float("nan"),
-            "split_ms": split, "turns": n, "images": len(sink.values())}
+            "split_ms": split, "grid_split_ms": grid, "turns": n, "images": sink.images}
 
 
 def _split_text(split: dict[str, float], prefix: str = "") -> str:
@@ -311,6 +339,8 @@ def main() -> None:
         r = bench_panoramic_radiate(a.radiate, a.radiate_turns)
         print(f"RADIATE panoramic builder {r['ms_per_turn']:.1f} ms/turn ({r['turns']} turns; first turn "
               f"{r['first_turn_ms']:.0f} ms) = {_split_text(r['split_ms'])} ms (mean)")
+        if r["grid_split_ms"]:
+            print(f"  scan_to_grid = {_split_text(r['grid_split_ms'])} ms")
         result["panoramic_radiate_ms_per_turn"] = round(r["ms_per_turn"], 2)
         result["panoramic_radiate_first_turn_ms"] = round(r["first_turn_ms"], 1)
     else:

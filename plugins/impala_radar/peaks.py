@@ -2,8 +2,9 @@
 
 All functions work on a whole turn at once: ``power`` is (beams, bins) linear power, the
 sliding windows run along the bin axis (:mod:`scipy.ndimage` box filters for CA,
-``np.partition`` over sliding-window views for OS; :func:`find_os_peaks` computes the OS
-level only where a peak can be, compiled with numba).
+``np.partition`` over sliding-window views for OS; :func:`find_os_peaks` tests the OS
+level only where a peak can be, by counting instead of sorting, compiled with numba: 4.0 ->
+1.45 ms for a Beynes turn's spectra).
 
 CFAR (square-law detector, exponentially distributed noise power). For ``n`` training
 cells (both sides, ``guard`` cells excluded around the cell under test) and a false-alarm

@@ -149,3 +149,27 @@ def test_os_cfar_is_the_rank_filter_of_the_training_cells():
     got = find_os_peaks(power, 1e-3, train, guard, 5)
     want = find_peaks(power, cfar_threshold(power, 1e-3, train, guard, "os"), 5)
     assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+
+
+def test_xcorr_lag_terms_are_the_numpy_formula_bit_for_bit():
+    """The compiled lag terms of the xcorr prior against the (speeds, beams) numpy formula,
+    float32 and float64 correlations, lags of both signs and beyond a row's length."""
+    from impala_radar.pairer._jit import lag_terms
+    from impala_radar.pairer.core import static_offset_bins
+
+    rng = np.random.default_rng(12)
+    az = np.sort(rng.uniform(0.0, 2 * np.pi, 90))
+    speeds = np.concatenate([np.arange(-20.0, 20.0 + 1e-9, 0.25), [0.0, 150.0, -400.0]])
+    n = 72
+    for dtype in (np.float32, np.float64):
+        c = rng.normal(0.0, 1.0, (len(az), 2 * n)).astype(dtype)
+        lag = static_offset_bins(az[None, :], speeds[:, None], IMPALA)
+        lo = np.floor(lag)
+        w = lag - lo
+        i0 = lo.astype(np.int64) % (2 * n)
+        i1 = (i0 + 1) % (2 * n)
+        rows = np.arange(len(az))[None, :]
+        want = (1 - w) * c[rows, i0] + w * c[rows, i1]
+        got = np.empty_like(want)
+        lag_terms(c, np.cos(az), speeds, 4.0 * IMPALA.f0_hz, SPEED_OF_LIGHT_MPS * IMPALA.bin_hz, got)
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))

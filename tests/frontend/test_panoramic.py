@@ -216,3 +216,77 @@ def test_doppler_compensation_is_the_numpy_formula_bit_for_bit():
     got = doppler_compensated_power(up, down, az, v, IMPALA)
     kk = int(k)
     np.testing.assert_allclose(got[180, kk:-kk], 0.5 * (up[180, 2 * kk:] + down[180, :-2 * kk]), rtol=1e-6)
+
+
+def test_compiled_polar_and_bilinear_read_are_opencvs_bit_for_bit():
+    """The compiled loops against OpenCV itself: ranges and bearings as cv2.cartToPolar gives
+    them (cells on the axes and diagonals included), and the bilinear read as cv2.remap
+    (INTER_LINEAR, constant 0 border) gives it, for reads inside, across the border and
+    outside the polar image."""
+    import cv2
+
+    from impala_radar.panoramic import _jit
+    from impala_radar.panoramic.core import _ATAN_P, _TWO_PI_F32
+
+    rng = np.random.default_rng(3)
+    n = 201
+    c = (np.arange(-(n // 2), n // 2 + 1) * 0.3).astype(np.float32)
+    spans = np.column_stack([np.zeros(n, np.int64), np.full(n, n, np.int64)])
+    n_beams = 64
+    i0 = rng.integers(0, n_beams, (n, n)).astype(np.uint16)
+    px, py = (rng.normal(0.0, 1.5, n_beams).astype(np.float32) for _ in range(2))
+    px[:8] = py[:8] = 0.0  # cells read by these beams fall on the axes and diagonals of their frame
+    th = rng.uniform(-0.2, 0.2, n_beams)
+    th[:8] = 0.0
+    ct, st = np.cos(th).astype(np.float32), np.sin(th).astype(np.float32)
+    r, bearing = np.empty(n * n, np.float32), np.empty(n * n, np.float32)
+    _jit.polar_cells(c, spans, i0, px, py, ct, st, _ATAN_P, False, np.float32(0), np.float32(1), _TWO_PI_F32,
+                     r, bearing)
+    x, y = np.meshgrid(c, c)
+    k = i0.astype(np.intp)
+    dx, dy = x - px[k], y - py[k]
+    want_r, want_b = cv2.cartToPolar(ct[k] * dx + st[k] * dy, ct[k] * dy - st[k] * dx)
+    assert np.array_equal(r.view(np.int32), want_r.ravel().view(np.int32))
+    assert np.array_equal(bearing.view(np.int32), want_b.ravel().view(np.int32))
+
+    power = rng.exponential(1.0, (n_beams, 40)).astype(np.float32)
+    order = rng.permutation(n_beams)
+    rows = np.concatenate([power[order][-1:], power[order], power[order][:1]])
+    bin_m, offset_m = np.float32(0.25), np.float32(0.1)
+    map_x = rng.uniform(-3.0, 43.0, (n, n)).astype(np.float32)
+    map_y = rng.uniform(-2.5, n_beams + 3.5, (n, n)).astype(np.float32)
+    map_x[::7, ::5] = np.floor(map_x[::7, ::5])  # whole bins and rows: weights of exactly 0
+    map_y[::3, ::11] = np.float32(-1.0)
+    r_read = (map_x / np.float32(1.0 / bin_m) + offset_m).astype(np.float32)
+    map_x = (r_read - offset_m) * np.float32(1.0 / bin_m)  # the bins the loop computes from r_read
+    near = rng.uniform(size=(n, n)) < 0.05
+    r_cell = np.where(near, np.float32(0.5), np.float32(10.0)).astype(np.float32)
+    want = cv2.remap(rows, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    want[near] = 0.0
+    got = np.zeros((n, n), np.float32)
+    _jit.read_cells(power, order, spans, r_read.ravel(), r_cell.ravel(), map_y.ravel(), offset_m,
+                    np.float32(1.0 / bin_m), np.float32(1.0), got)
+    assert np.array_equal(got.view(np.int32), want.view(np.int32))
+    assert 0 < np.count_nonzero(got) < got.size
+
+
+def test_grid_of_a_partial_turn_is_the_formula_of_its_beams():
+    """A partial turn with missing beams (a non-uniform azimuth table) and no motion: the
+    packed loops over the disk give what remap gives over the square with the table's rows."""
+    import cv2
+
+    from impala_radar.panoramic.core import AzimuthTable, grid_geometry
+
+    rng = np.random.default_rng(4)
+    az = np.concatenate([np.arange(0, 150), np.arange(170, 300), np.arange(301, 380)]) * 2 * np.pi / 400
+    power = rng.exponential(1.0, (len(az), 120)).astype(np.float32)
+    got, _ = scan_to_grid(power, az, np.zeros((len(az), 3)), 0.25, 0.25, 25.0, 1.1, 0.05, 1.0)
+    table = AzimuthTable(az)
+    assert not table.uniform
+    x, y, r, bearing = grid_geometry(100, 0.25)
+    r_read = cv2.magnitude(r, np.full_like(r, np.float32(1.1)))
+    map_x = (r_read - np.float32(0.05)) * np.float32(1.0 / 0.25)
+    want = cv2.remap(table.rows(power), map_x, table.row_of(bearing), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    want[(r > np.float32(25.0)) | (r < np.float32(1.0))] = 0.0
+    assert np.array_equal(got.view(np.int32), want.view(np.int32))

@@ -72,3 +72,21 @@ def test_fmt_threshold():
     assert np.array_equal(threshold_image(x, "mean", 1.0), [[0, 0, 2, 3]])  # mean of observed = 2
     assert np.array_equal(threshold_image(x, "quantile", 0.5), [[0, 0, 2, 3]])
     assert threshold_image(x, "none", 1.0) is x
+
+
+def test_mean_of_looks_is_the_numpy_formula_bit_for_bit():
+    """The compiled last step of multilook: acc / count where a look saw the cell, else 0."""
+    import cv2
+
+    from impala_radar.speckle._jit import mean_of_looks
+
+    rng = np.random.default_rng(6)
+    acc = (rng.exponential(1.0, (300, 301)) * rng.integers(0, 2, (300, 301))).astype(np.float32)
+    for cnt in (rng.integers(0, 5, acc.shape).astype(np.uint8), rng.integers(0, 300, acc.shape).astype(np.float32)):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            want = cv2.copyTo(acc / cnt.astype(np.float32), (cnt > 0).view(np.uint8) if cnt.dtype == np.uint8
+                              else (cnt > 0).astype(np.uint8))
+        out, cnt_f = np.empty_like(acc), np.empty_like(acc)
+        mean_of_looks(acc, cnt, out, cnt_f)
+        assert np.array_equal(out.view(np.int32), want.view(np.int32))
+        assert np.array_equal(cnt_f, cnt.astype(np.float32))

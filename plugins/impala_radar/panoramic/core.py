@@ -10,11 +10,14 @@ range give the fractional beam and bin read. One fixed-point step suffices: neig
 beams' poses differ by v / (B f_rot) (1.4 cm at 5 m/s), except across the turn's seam
 (first/last beam), where the image itself is discontinuous (the trochoid does not close).
 What the beam azimuths and the grid fix (each cell's nominal beam, its bearing's row without
-motion) is kept while the turns repeat them; the per-cell arithmetic runs in compiled loops
-(:mod:`._jit`, numba), bit for bit the float32 formula, with OpenCV for the polar coordinates
-and the bilinear read (graphs/oxford.yaml's settings on RADIATE turns: 111 -> 28 ms of CPU per
-turn on a loaded machine, bench/frontend.py; the first grid compiles the loops once per machine,
-2 s, then loads them from numba's cache, 0.5 s with the import).
+motion, the cells on the disk) is kept while the turns repeat them; the per-cell arithmetic
+runs in two compiled loops over the disk's cells only (:mod:`._jit`, numba), bit for bit the
+float32 formula of OpenCV's ``cartToPolar`` and ``remap`` that it replaces, with
+``cv2.magnitude`` kept for the ground range (IPP's rounding). graphs/oxford.yaml's settings on
+RADIATE turns: scan_to_grid 16.7 -> 10.8 ms of CPU per turn (111 before issue 26), the
+component 21 -> 15 ms, measured alternately on a loaded machine (bench/frontend.py); the
+first grid compiles the loops once per machine, a few seconds, then loads them from numba's
+cache, 0.5 s with the import.
 
 Doppler compensation: the up and down spectra of a static target sit at f_r +- f_d with
 f_d = 2 V f0 / c, V = -v cos(theta) (eq. 2, 7); shifting each beam's up spectrum by -f_d
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 
 import cv2
 import numpy as np
@@ -107,10 +111,9 @@ def normalise_beams(power: np.ndarray) -> np.ndarray:
     is 0 (blanked, all zero) is divided by its smallest positive power, or left at 0."""
     p = np.asarray(power, np.float32)
     if p.ndim == 2 and p.shape[1]:
-        from .._median_jit import row_medians  # here: numba is imported at the first turn, not with the plugin
+        from .._median_jit import medians  # here: numba is imported at the first turn, not with the plugin
 
-        floor = np.empty(p.shape[0], np.float32)
-        row_medians(np.ascontiguousarray(p), floor)  # np.median(p, axis=1) bit for bit, RADIATE 4.4 -> 2.1 ms
+        floor = medians(p)  # np.median(p, axis=1) bit for bit, RADIATE 3.2 -> 1.4 ms
     else:
         floor = np.median(p, axis=1)
     bad = ~(floor > 0)
@@ -212,25 +215,92 @@ class AzimuthTable:
         return self.order[k]
 
 
+_ATAN_P = np.array([np.float32(np.float32(c) * np.float32(180.0 / math.pi))  # OpenCV's atan2_p1..p7
+                    for c in (0.9997878412794807, -0.3258083974640975, 0.1555786518463281, -0.04432655554792128)]
+                   + [np.float32(math.pi / 180.0)], np.float32)
+
+
 class _Plan:
     """What one beam geometry (azimuths, gap limit) and one grid (half size, cell) fix, built
     once and reused while the turns keep them (a Navtech's azimuths repeat turn after turn):
-    the azimuth table, each cell's nominal beam (:meth:`AzimuthTable.nearest`), the cells
-    outside the disk, the rows of the bearings without motion."""
+    the azimuth table, each cell's nominal beam (:meth:`AzimuthTable.nearest`), the rows of
+    the bearings without motion, and per disk radius the cells on the disk (:meth:`disk`)."""
 
     def __init__(self, azimuth_rad: np.ndarray, max_gap: float, n_half: int, cell_m: float) -> None:
         self.table = AzimuthTable(azimuth_rad, max_gap)
         self.x, self.y, self.r, self.bearing = grid_geometry(n_half, cell_m)
+        self.c = np.ascontiguousarray(self.x[0])
         self.row0 = self.table.row_of(self.bearing)
-        i0 = self.table.nearest(self.row0)  # a beam index: int16 (a Navtech's 400 beams) reads faster
-        self.i0 = i0.astype(np.int16) if len(self.table.order) < 32768 else i0
-        self.height: dict[float, np.ndarray] = {}
+        i0 = self.table.nearest(self.row0)  # a beam index: uint16 (a Navtech's 400 beams) reads faster
+        self.i0 = i0.astype(np.uint16) if len(self.table.order) < 65536 else i0
+        self._disks: dict[tuple, _Disk] = {}
 
-    def height_of(self, height_m: float) -> np.ndarray:
-        """A constant image of ``height_m`` (float32) the size of the grid."""
-        if height_m not in self.height:
-            self.height[height_m] = np.full_like(self.r, np.float32(height_m))
-        return self.height[height_m]
+    def disk(self, r_max: np.float32) -> _Disk:
+        if r_max not in self._disks:
+            self._disks[r_max] = _Disk(self, r_max)
+        return self._disks[r_max]
+
+
+class _Disk:
+    """The cells of a plan's grid within ``r_max`` of the centre (``r <= r_max`` in float32:
+    about 79 % of the square), row by row: ``spans[j]`` the columns [start, stop) of row j on
+    the disk (contiguous: the range grows with |x| on a row); the packed cells' range, row
+    without motion, and range read at each radar height (:meth:`r_read0`) without motion."""
+
+    GUARD = 64  # cells each side of a packed run given to cv2.magnitude (see :meth:`magnitude`)
+
+    def __init__(self, plan: _Plan, r_max: np.float32) -> None:
+        on = plan.r <= r_max
+        count = on.sum(axis=1)
+        start = np.where(count > 0, on.argmax(axis=1), 0)
+        self.spans = np.column_stack([start, start + count]).astype(np.int64)
+        last = on.shape[1] - 1 - on[:, ::-1].argmax(axis=1)
+        if np.any((count > 0) & (last - start + 1 != count)):  # a row's disk cells form one run
+            raise ValueError("the disk's cells of a grid row are not contiguous")
+        self.index = np.flatnonzero(on.ravel())  # row-major: the packed order
+        self.n = len(self.index)
+        self.r0 = self.packed(plan.r)
+        self.row0 = self.packed(plan.row0)
+        self._plan = plan
+        self._r_read0: dict[float, np.ndarray] = {}
+        self._height: dict[float, np.ndarray] = {}
+        self._scratch = threading.local()  # per thread: two builders may share a plan
+
+    def packed(self, image: np.ndarray) -> np.ndarray:
+        """The disk cells of a grid-sized image, in packed order (float32)."""
+        return np.ascontiguousarray(image.ravel()[self.index], np.float32)
+
+    def scratch(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This thread's working arrays, reused turn after turn (fresh pages cost as much as the
+        loops): a float32 run of ``n`` cells with ``GUARD`` zeros each side (the ranges, written
+        in its middle), one for :meth:`magnitude`'s output, and ``n`` cells (the rows)."""
+        s = self._scratch
+        if not hasattr(s, "run"):
+            s.run = np.zeros(self.n + 2 * self.GUARD, np.float32)
+            s.out = np.empty_like(s.run)
+            s.row = np.empty(self.n, np.float32)
+        return s.run, s.out, s.row
+
+    def middle(self, run: np.ndarray) -> np.ndarray:
+        return run[self.GUARD:self.GUARD + self.n]
+
+    def magnitude(self, run: np.ndarray, out: np.ndarray, height_m: float) -> np.ndarray:
+        """sqrt(r^2 + h^2) of the middle of a guarded run (:meth:`scratch`) as ``cv2.magnitude``
+        gives it over the whole square. OpenCV (IPP) computes the first cells of a run up to a
+        64-byte boundary and its last partial block with other roundings: the guards take them,
+        as the square's corners (off the disk) did, so every disk cell is computed by one loop."""
+        if height_m not in self._height:
+            self._height[height_m] = np.full(len(run), np.float32(height_m))
+        cv2.magnitude(run, self._height[height_m], out)
+        return self.middle(out)
+
+    def r_read0(self, height_m: float) -> np.ndarray:
+        """The range each disk cell reads without motion: its ground range's slant range as
+        ``cv2.magnitude`` gives it over the whole square (packed)."""
+        if height_m not in self._r_read0:
+            r = self._plan.r
+            self._r_read0[height_m] = self.packed(cv2.magnitude(r, np.full_like(r, np.float32(height_m))))
+        return self._r_read0[height_m]
 
 
 _PLANS: dict[tuple, _Plan] = {}
@@ -265,27 +335,28 @@ def scan_to_grid(power: np.ndarray, azimuth_rad, beam_poses_xyt, range_per_bin_m
     high would land 17 cm too far, 8 cm at 10 m)."""
     n_half = int(math.ceil(range_max_m / cell_m))
     plan = _plan(azimuth_rad, max_gap, n_half, float(cell_m))
-    table, r_cell = plan.table, plan.r
-    r, bearing, map_y = r_cell, plan.bearing, plan.row0
-    from ._jit import maps, rotate  # here: numba is imported at the first grid, not with the plugin
+    table = plan.table
+    disk = plan.disk(np.float32(range_max_m))
+    from ._jit import polar_cells, read_cells  # here: numba is imported at the first grid, not with the plugin
 
+    f32 = np.float32
     poses = np.asarray(beam_poses_xyt, float)
     if np.any(poses != 0.0):
         # each cell moved into the frame of the beam that saw it (one fixed-point step)
         px, py = poses[:, 0].astype(np.float32), poses[:, 1].astype(np.float32)
         ct, st = np.cos(poses[:, 2]).astype(np.float32), np.sin(poses[:, 2]).astype(np.float32)
-        u, v = np.empty_like(r_cell), np.empty_like(r_cell)
-        rotate(plan.x, plan.y, plan.i0, px, py, ct, st, u, v)
-        r, bearing = cv2.cartToPolar(u, v)
-        map_y = np.empty_like(r_cell) if table.uniform else table.row_of(bearing)
-    r_read = cv2.magnitude(r, plan.height_of(height_m)) if height_m > 0.0 else r
-    map_x = np.empty_like(r_cell)
-    f32 = np.float32
-    # cells off the disk or blanked at acquisition read outside the polar image: 0
-    maps(r_read, r, r_cell, bearing, f32(table.azimuth_rad[0]), f32(1.0 / table.spacing_rad), _TWO_PI_F32,
-         f32(range_offset_m), f32(1.0 / range_per_bin_m), f32(range_max_m), f32(range_min_m),
-         table.uniform and map_y is not plan.row0, map_x, map_y)
-    grid = cv2.remap(table.rows(power), map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                     borderValue=0.0)
+        run, out, row = disk.scratch()
+        r = disk.middle(run)
+        polar_cells(plan.c, disk.spans, plan.i0, px, py, ct, st, _ATAN_P, table.uniform, f32(table.azimuth_rad[0]),
+                    f32(1.0 / table.spacing_rad), _TWO_PI_F32, r, row)
+        if not table.uniform:
+            row = table.row_of(row)
+        r_read = disk.magnitude(run, out, height_m) if height_m > 0.0 else r
+    else:
+        r, row = disk.r0, disk.row0
+        r_read = disk.r_read0(height_m) if height_m > 0.0 else r
+    grid = np.empty(plan.r.shape, np.float32)  # cells off the disk or blanked at acquisition: 0
+    read_cells(np.ascontiguousarray(power, np.float32), table.order, disk.spans, r_read, r, row, f32(range_offset_m),
+               f32(1.0 / range_per_bin_m), f32(range_min_m), grid)
     origin = -n_half * cell_m
     return grid, (origin, origin)

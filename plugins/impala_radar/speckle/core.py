@@ -70,11 +70,11 @@ def multilook(images: list[Grid], interpolation: str = "linear") -> tuple[np.nda
         # footprint of the look (nearest: a cell is observed or not)
         cnt += cv2.warpAffine((g.data > 0).view(np.uint8), m, (w, h), flags=cv2.INTER_NEAREST,
                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    seen = (cnt > 0).view(np.uint8)
-    cnt = cnt.astype(np.float32)
-    with np.errstate(divide="ignore", invalid="ignore"):  # the unseen cells' inf and NaN are not kept
-        out = cv2.copyTo(acc / cnt, seen)  # 0 where no look observed the cell
-    return out, cnt
+    from ._jit import mean_of_looks  # here: numba is imported at the first turn, not with the plugin
+
+    out, cnt_f = np.empty((h, w), np.float32), np.empty((h, w), np.float32)
+    mean_of_looks(acc, cnt, out, cnt_f)  # acc / cnt, 0 where no look observed the cell
+    return out, cnt_f
 
 
 def threshold_image(data: np.ndarray, mode: str, threshold: float) -> np.ndarray:
