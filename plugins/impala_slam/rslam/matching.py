@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -224,6 +225,25 @@ def _dft_size(n: int) -> int:
     return min(m << max(0, math.ceil(math.log2(n / m))) for m in (1, 3, 5))
 
 
+_SCRATCH = threading.local()
+
+
+def _scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
+    """A work array kept per thread and shape (contents undefined), overwritten by the next call
+    with the same name and shape: a fresh multi-megabyte array costs its page faults at every
+    turn (2-3 ms of the fine level's window DFT and energy on Beynes)."""
+    pool = getattr(_SCRATCH, "pool", None)
+    if pool is None:
+        pool = _SCRATCH.pool = {}
+    key = (name, shape, np.dtype(dtype).str)
+    a = pool.get(key)
+    if a is None:
+        if len(pool) >= 64:  # shapes change only with the geometry: forget the old ones
+            pool.clear()
+        a = pool[key] = np.empty(shape, dtype)
+    return a
+
+
 class _Correlator:
     """eq. (5) normalised (``TM_CCORR_NORMED``) of many templates against one map window.
 
@@ -236,7 +256,8 @@ class _Correlator:
     (``nonzeroRows`` would skip rows but leaves OpenCV's IPP path: 3-4 times slower here).
     The normalisation follows OpenCV's (num / (sqrt(window energy) |T|), +-1
     between 1 and 1.125 of it, 0 beyond), so the surface equals matchTemplate's to float32
-    rounding."""
+    rounding. Its work arrays are per-thread scratch (:func:`_scratch`): a correlator is used
+    up before the next one of the same DFT size is made on its thread."""
 
     def __init__(self, window: np.ndarray, m: int) -> None:
         n = window.shape[0]
@@ -245,11 +266,14 @@ class _Correlator:
         self.empty = not window.any()
         if self.empty:
             return
-        pad = np.zeros((self.size, self.size), np.float32)
+        size = self.size
+        pad = _scratch("window", (size, size))
         pad[:n, :n] = window
-        self.spectrum = cv2.dft(pad)
-        self._buf = np.zeros((self.size, self.size), np.float32)
-        sq = cv2.integral(np.square(window, dtype=np.float64))
+        pad[n:], pad[:n, n:] = 0.0, 0.0
+        self.spectrum = cv2.dft(pad, dst=_scratch("window spectrum", (size, size)))
+        self._buf = np.zeros((size, size), np.float32)
+        sq = np.square(window, dtype=np.float64, out=_scratch("square", (n, n), np.float64))
+        sq = cv2.integral(sq, sum=_scratch("integral", (n + 1, n + 1), np.float64))
         k = self.k
         self.energy = sq[m:m + k, m:m + k] - sq[:k, m:m + k] - sq[m:m + k, :k] + sq[:k, :k]
 
