@@ -94,7 +94,7 @@ class RSlamCore:
         # thread CPU seconds per stage: amplitude, prepare, coarse, fine (matching), update
         self.split: dict[str, float] = {}
         self._alpha_key: tuple | None = None
-        self._both = np.zeros((0, 0, 2), np.float32)
+        self._alpha_img = np.zeros((0, 0), np.float32)
 
     # --- prediction ------------------------------------------------------------------
     def predict(self, t_ns: int, odom: Pose | None) -> Pose:
@@ -163,7 +163,7 @@ class RSlamCore:
         a -= np.float32(math.log(floor))
         a *= np.float32(10.0 / math.log(10.0))
         unseen = np.greater(p, 0.0)
-        a[np.logical_not(unseen, out=unseen)] = 0.0
+        np.copyto(a, np.float32(0.0), where=np.logical_not(unseen, out=unseen))  # a[mask] = 0, without the gather
         return Grid(a, grid.cell_m, grid.origin_x_m, grid.origin_y_m, grid.frame, grid.pose)
 
     # --- one turn ----------------------------------------------------------------------
@@ -200,18 +200,18 @@ class RSlamCore:
         self._last_odom = odom
         return pose, cov, ok
 
-    def _interleaved(self, grid: Grid) -> np.ndarray:
-        """(rows, cols, 2) float32 buffer whose channel 1 is alpha(d) over the panoramic's own
-        cells (d from the radar at the vehicle origin), kept while the grid's geometry is."""
+    def _alpha_image(self, grid: Grid) -> np.ndarray:
+        """(rows, cols) float32 alpha(d) over the panoramic's own cells (d from the radar at the
+        vehicle origin), kept while the grid's geometry is."""
         key = (grid.data.shape, grid.cell_m, grid.origin_x_m, grid.origin_y_m)
         if self._alpha_key != key:
             xs = grid.origin_x_m + grid.cell_m * np.arange(grid.data.shape[1], dtype=np.float64)
             ys = grid.origin_y_m + grid.cell_m * np.arange(grid.data.shape[0], dtype=np.float64)
-            self._both = np.empty(grid.data.shape + (2,), np.float32)
+            self._alpha_img = np.empty(grid.data.shape, np.float32)
             for i in range(0, len(ys), 32):  # by bands of rows: the float64 temporaries stay in cache
-                self._both[i:i + 32, :, 1] = self.alpha(np.hypot(xs[None, :], ys[i:i + 32, None]))
+                self._alpha_img[i:i + 32] = self.alpha(np.hypot(xs[None, :], ys[i:i + 32, None]))
             self._alpha_key = key
-        return self._both
+        return self._alpha_img
 
     def update_map(self, grid: Grid, pose: Pose) -> None:
         """Merge the panoramic at ``pose`` into the map (eq. 6).
@@ -228,14 +228,13 @@ class RSlamCore:
         reach = min(self.cfg.range_max_m, math.hypot(half_x, half_y))
         ix0, iy0 = tm.index_of(pose[0] - reach, pose[1] - reach)
         n = int(math.ceil(2.0 * reach / tm.cell_m)) + 2
-        # amplitude and alpha(d) resampled together (alpha is radial around the radar): one
-        # 2-channel warp (two single-channel warps interpolate with other roundings), its
-        # input interleaved into a buffer holding alpha; a cell is covered where the amplitude
-        # is defined (NaN outside the panoramic) and alpha > 0: TileMap.add merges only those
-        both = self._interleaved(grid)
-        both[..., 0] = grid.data
-        warped = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, data=both)
-        amp, alpha = warped[..., 0], warped[..., 1]  # views: cv2.split would copy both channels
+        # amplitude and alpha(d) (radial around the radar) resampled alike, each by a single-channel
+        # warp: OpenCV 5 interpolates one channel with exact float coordinates (2.5e-5 dB RMS from a
+        # float64 bilinear on Beynes) where its 2-channel warp, twice as slow, rounds them to 1/32 of
+        # a cell (0.012 dB RMS, up to 0.87 dB). A cell is covered where the amplitude is defined (NaN
+        # outside the panoramic) and alpha > 0: TileMap.add merges only those
+        amp = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m)
+        alpha = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, 0.0, data=self._alpha_image(grid))
         np.copyto(alpha, np.float32(0.0), where=np.isnan(amp))
         weighted = np.multiply(alpha, amp, out=amp)  # NaN where not covered: masked by alpha = 0
         tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else alpha > 0)
