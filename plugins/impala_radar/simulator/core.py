@@ -66,7 +66,6 @@ from .spectra import (
     Synthesizer,
     azimuth_pattern,
     echoes,
-    pair_echoes,
     received_power_w,
 )
 from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
@@ -280,50 +279,50 @@ class RadarSimulator:
         mids, halves = kernels.block_spans(beam_dir, bb)  # np.unwrap of each block's directions
 
         rx, ry = radar_xy[:, 0].copy(), radar_xy[:, 1].copy()
+        cos_b, sin_b = np.cos(beam_dir), np.sin(beam_dir)
+        segs_c = np.ascontiguousarray(segs, float).reshape(-1, 4)
+        no_behind = np.zeros(0, bool)
 
-        def block(b0):  # the (beam, scatterer) pairs of the block of beams starting at b0
-            sl = slice(b0, min(n, b0 + bb))
-            mid, half = float(mids[b0 // bb]), float(halves[b0 // bb])
-            j = kernels.block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack)
-            if j.size == 0:
-                return None
-            vis = None
-            pos = radar_xy[(sl.start + sl.stop - 1) // 2]
-            if len(segs):
-                vis = w.visible(pos, sx[j], sy[j], segs) | ghost[j]
-            occ = self._block_discs(discs, pos, mid, half + self._cut_rad, t_ns[(sl.start + sl.stop - 1) // 2])
-            if len(occ):
-                cand = behind[j] if behind is not None else np.ones(len(j), bool)
-                if cand.any():
-                    tr = np.ones(len(j))
-                    jc = j[cand]
-                    tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
-                    vis = tr if vis is None else tr * vis
-            # select_pairs' compiled loop, called directly with the block's arrays (no copies)
-            bi, si, d = kernels.static_pairs(rx[sl], ry[sl], np.cos(beam_dir[sl]), np.sin(beam_dir[sl]), sx[j],
-                                             sy[j], tan_cut[j], r_lim**2, np.ones(len(j), bool) if vis is None
-                                             else vis > 0)
-            shadow = vis[si] if vis is not None and vis.dtype != bool else None
-            return sl.start + bi, j[si], d, shadow
+        def run(blocks: range):  # the pairs of a run of blocks: their discs here, the rest in one compiled pass
+            occ = [self._block_discs(discs, radar_xy[(b0 + min(n, b0 + bb) - 1) // 2], float(mids[b0 // bb]),
+                                     float(halves[b0 // bb]) + self._cut_rad, t_ns[(b0 + min(n, b0 + bb) - 1) // 2])
+                   for b0 in blocks]
+            occ_lo = np.concatenate([[0], np.cumsum([len(o) for o in occ])]).astype(np.intp)
+            occ_all = np.ascontiguousarray(np.concatenate(occ), float) if occ_lo[-1] else np.zeros((0, 6))
+            return [kernels.block_pairs(
+                blocks.start // bb, (blocks.stop - 1) // bb + 1, bb, mids, halves, far, far_bearing, near, bearing,
+                slack, far_slack, rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r_lim**2, ghost,
+                no_behind if behind is None else behind, behind is not None, segs_c, occ_all, occ_lo,
+                self.config.height_m, 0.05)]
 
         # blocks are independent: contiguous runs of them on the threads, joined in block order
-        parts = [p for p in self._map_chunks(lambda run: [block(b0) for b0 in run], range(0, n, bb))
-                 if p is not None]
+        parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
         if not parts:
             return Echoes.concat([])
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
         beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-        d = [np.concatenate([p[2][k] for p in parts]) for k in range(5)]
-        shadow = None
-        if any(p[3] is not None for p in parts):  # x 1.0 where a block had none: exact
-            shadow = np.concatenate([np.ones(len(p[0])) if p[3] is None else p[3] for p in parts])
+        d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
 
-        def physics(run):  # element-wise per pair: chunks joined in order give the same bits
+        p, cfg = self.params, self.config
+        lam = SPEED_OF_LIGHT_MPS / cfg.f0_hz
+        k_eq = p.pt_g2_w(cfg) * lam**2 / (4.0 * math.pi) ** 3  # received_power_w's constant
+        sin_ref = math.sin(math.radians(p.grazing_ref_deg)) if p.grazing_ref_deg is not None else 1.0
+        rvx, rvy = radar_vxy[:, 0].copy(), radar_vxy[:, 1].copy()
+
+        def physics(run):  # pair_echoes per pair (compiled arithmetic, numpy's transcendental functions)
             sl = slice(run.start, run.stop)
-            return [pair_echoes(beam[sl], radar_vxy[beam[sl]], *(a[sl] for a in d), sz[jj[sl]], None, rcs[jj[sl]],
-                                phase[jj[sl]], area[jj[sl]], None if shadow is None else shadow[sl],
-                                self.config, self.params)]
+            b, q, dd = beam[sl], jj[sl], d[:, sl]
+            r_h, dz, range_m, radial = kernels.pair_ranges(b, q, dd, sz, cfg.height_m, rvx, rvy)
+            g_az = self._pattern.gain2(np.arctan2(dd[3], dd[2]))
+            e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
+                                                     -8.0 * math.log(2.0)))
+            # the synthesizer's culling of weak echoes, done here (element-wise: the same echoes reach it)
+            return [Echoes(*kernels.pair_power(b, q, dd, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
+                                               p.grazing_ref_deg is not None, sin_ref, k_eq,
+                                               10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
+                                               self.synth._cull_w))]
 
+        # element-wise per pair: chunks joined in order give the same bits
         return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
 
     def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
