@@ -365,22 +365,23 @@ class Synthesizer:
 
         m_grid, width = self.n_grid, _KERNEL_WIDTH
         x = kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
-        row = m_grid + width - 1  # one padded row per beam; wrapped columns folded below
+        row = m_grid + width - 1  # one padded row per beam; wrapped columns folded in _grid
         # phi(m h - x_i) at the 6 grid points around x_i, in float32 (error 1e-7 << 1e-5)
         arg, base = kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
                                               np.float32(_KERNEL_BETA))
-        ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
-        size = n_beams * row
         phase32 = kernels.wrap_phase32(np.asarray(phase_rad, float))
-        amp32 = amplitude.astype(np.float32)
-        b_re, b_im = kernels.spread(base, ker, amp32 * np.cos(phase32), amp32 * np.sin(phase32), size)
-        padded = (b_re + 1j * b_im).reshape(n_beams, row)
-        o = width // 2 - 1  # padded column c holds grid point (c - o) mod M
-        b = padded[:, o:o + m_grid].copy()
-        b[:, m_grid - o:] += padded[:, :o]
-        b[:, : width - 1 - o] += padded[:, o + m_grid:]
-        z = scipy.fft.ifft(b, axis=1)
+        z = self._grid(arg, base, phase32, amplitude.astype(np.float32), n_beams)
         return z[:, self._time_index] * self._deapodize
+
+    def _grid(self, arg, base, phase32, amp32, n_beams: int) -> np.ndarray:
+        """The IFFT (n_beams, M) of the spread grid from the kernel's exponents ``arg`` at the grid
+        points from ``base`` on, the phases and amplitudes (float32) of the echoes in the band."""
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
+        b = kernels.spread_fold(base, ker, amp32, np.cos(phase32), np.sin(phase32), n_beams, self.n_grid,
+                                _KERNEL_WIDTH // 2 - 1)
+        return scipy.fft.ifft(b, axis=1)
 
     def power_spectrum(self, beat_signal: np.ndarray) -> np.ndarray:
         """Windowed, zero-padded power spectrum (n_beams, n_bins) float32 of real samples."""
@@ -432,26 +433,55 @@ class Synthesizer:
             if not strong.all():
                 e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
                            e.power_w[strong], e.phase_rad[strong])
-        # bin k holds range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m)
-        f_r, f_d = beat_frequencies_hz(e.range_m - self.config.range_offset_m, e.radial_mps, self.config)
-        k = 4.0 * math.pi / self.lambda_m
+        # bin k holds range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m); per ramp, one compiled pass
+        # gives each echo its beat frequency f, phase and kernel values (beat_frequencies_hz's arithmetic)
         if self.single_ramp:
-            up = self.ramp(e.beam, f_r + 2.0 * f_d, e.power_w, e.phase_rad + k * e.range_m,
-                           n_beams, rng, e.range_m)
+            up = self._ramp(e, 0, n_beams, rng)
             return up, np.zeros((n_beams, 0), np.float32)
-        half = 0.5 * self.ramp_s * e.radial_mps
-        f_up, ph_up = f_r + f_d, e.phase_rad + k * (e.range_m - half)
-        f_down, ph_down = f_r - f_d, e.phase_rad + k * (e.range_m + half)
         if self.pool is None:
-            up = self.ramp(e.beam, f_up, e.power_w, ph_up, n_beams, rng, e.range_m)
-            down = self.ramp(e.beam, f_down, e.power_w, ph_down, n_beams, rng, e.range_m)
+            up = self._ramp(e, 1, n_beams, rng)
+            down = self._ramp(e, 2, n_beams, rng)
             return up, down
         # the down ramp on a second thread: its NUFFT (no randomness) from now, its spectrum once this
         # thread has drawn both ramps' noise in ramp()'s order (a one-worker pool runs them in turn)
-        amp = np.sqrt(2.0 * e.power_w)
-        job = self.pool.submit(self.signal, e.beam, f_down, amp, ph_down, n_beams)
+        prep_job = self.pool.submit(self._prepare, e, 2)
+        grid_job = self.pool.submit(lambda: self._grid(*prep_job.result()[1:], n_beams))
+        f_up, *prep_up = self._prepare(e, 1)
         draws_up = self._draws(e.beam, f_up, e.power_w, n_beams, rng, e.range_m)
-        draws_down = self._draws(e.beam, f_down, e.power_w, n_beams, rng, e.range_m)
-        down = self.pool.submit(lambda: self._spectrum(job.result().real, *draws_down))
-        up = self._spectrum(self.signal(e.beam, f_up, amp, ph_up, n_beams).real, *draws_up)
+        draws_down = self._draws(e.beam, prep_job.result()[0], e.power_w, n_beams, rng, e.range_m)
+        down = self.pool.submit(lambda: self._spectrum_of_grid(grid_job.result(), *draws_down))
+        up = self._spectrum_of_grid(self._grid(*prep_up, n_beams), *draws_up)
         return up, down.result()
+
+    def _prepare(self, e: Echoes, mode: int):
+        """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
+        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.kernels.ramp_echoes`)."""
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        c = self.config
+        m_grid = self.n_grid
+        return kernels.ramp_echoes(
+            np.ascontiguousarray(e.beam), *(np.ascontiguousarray(a, float) for a in (e.range_m, e.radial_mps,
+                                                                                     e.power_w, e.phase_rad)),
+            mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
+            2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
+            m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
+            np.float32(_KERNEL_BETA))
+
+    def _ramp(self, e: Echoes, mode: int, n_beams: int, rng) -> np.ndarray:
+        """:meth:`ramp` of the echoes ``e`` (``mode`` as :meth:`_prepare`)."""
+        f, *prep = self._prepare(e, mode)
+        z = self._grid(*prep, n_beams)
+        return self._spectrum_of_grid(z, *self._draws(e.beam, f, e.power_w, n_beams, rng, e.range_m))
+
+    def _spectrum_of_grid(self, z, noise, skirts) -> np.ndarray:
+        """:meth:`_spectrum` of the signal ``z[:, time_index] * deapodize`` from :meth:`_grid`'s IFFT, in
+        compiled passes with numpy's arithmetic (complex times real, then noise, window; the bins' powers)."""
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        empty = np.zeros((0, 0))
+        s = kernels.windowed_samples(z, self._time_index, self._deapodize, empty if noise is None else noise,
+                                     self.window)
+        x = scipy.fft.rfft(s, n=self.n_fft, axis=1)
+        return kernels.bin_powers(x, self.config.n_bins, self._scale,
+                                  np.zeros((0, 0), np.float32) if skirts is None else skirts)
