@@ -91,7 +91,7 @@ def beam_azimuths_rad(config: RadarConfig, params: RadarParams = DEFAULT_PARAMS)
 
 
 _POLAR_BIN_RAD = math.radians(0.5)
-_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
 
 
@@ -102,12 +102,12 @@ def default_threads() -> int:
     return max(1, min(2, cores or 1))
 
 
-def _pool(workers: int) -> ThreadPoolExecutor:
-    """A process-wide pool of ``workers`` threads (shared by the simulators, created once)."""
+def _pool(workers: int, name: str = "radar-sim") -> ThreadPoolExecutor:
+    """A process-wide pool of ``workers`` threads named ``name`` (shared by the simulators, created once)."""
     with _POOLS_LOCK:
-        if workers not in _POOLS:
-            _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="radar-sim")
-        return _POOLS[workers]
+        if (workers, name) not in _POOLS:
+            _POOLS[workers, name] = ThreadPoolExecutor(workers, thread_name_prefix=name)
+        return _POOLS[workers, name]
 
 
 def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
@@ -159,6 +159,11 @@ class RadarSimulator:
 
     def turn(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator):
         """(up, down) spectra (B, n_bins) float32 of the beams acquired at ``t_ns``."""
+        return self.synth.spectra(self.echoes(trajectory, t_ns, rng), len(t_ns), rng)
+
+    def echoes(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> Echoes:
+        """The echoes of the beams acquired at ``t_ns`` (static, movers, leakage): what :meth:`turn`
+        gives the synthesizer; ``rng`` draws the vegetation's jitter."""
         pose = trajectory.pose(t_ns)
         speed, _ = trajectory.velocity(t_ns)
         radar_xy = np.ascontiguousarray(pose[:, :2])
@@ -176,7 +181,7 @@ class RadarSimulator:
         if self.params.leakage_dbm is not None:
             p_w = 10.0 ** (self.params.leakage_dbm / 10.0) * 1e-3
             parts.append(Echoes(*leakage_echoes(len(t_ns), p_w, self.params.leakage_range_m)))
-        return self.synth.spectra(Echoes.concat(parts), len(t_ns), rng)
+        return Echoes.concat(parts)
 
     def _windows(self, rc, sz, rcs, area):
         """Azimuth half-window per scatterer (:mod:`.antenna`): where its echo can still
@@ -303,26 +308,33 @@ class RadarSimulator:
         beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
 
+        return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
+
+    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> Echoes:
+        """:func:`.spectra.pair_echoes` of the static pairs (beam, scatterer ``jj``, ``d`` from
+        :func:`.kernels.block_pairs`): compiled arithmetic around numpy's transcendental functions,
+        and the synthesizer's culling of weak echoes done here (element-wise: the same echoes reach it).
+        Element-wise per pair, so runs of pairs on the threads joined in order give the same bits."""
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
         p, cfg = self.params, self.config
         lam = SPEED_OF_LIGHT_MPS / cfg.f0_hz
         k_eq = p.pt_g2_w(cfg) * lam**2 / (4.0 * math.pi) ** 3  # received_power_w's constant
         sin_ref = math.sin(math.radians(p.grazing_ref_deg)) if p.grazing_ref_deg is not None else 1.0
         rvx, rvy = radar_vxy[:, 0].copy(), radar_vxy[:, 1].copy()
 
-        def physics(run):  # pair_echoes per pair (compiled arithmetic, numpy's transcendental functions)
+        def physics(run):
             sl = slice(run.start, run.stop)
             b, q, dd = beam[sl], jj[sl], d[:, sl]
             r_h, dz, range_m, radial = kernels.pair_ranges(b, q, dd, sz, cfg.height_m, rvx, rvy)
             g_az = self._pattern.gain2(np.arctan2(dd[3], dd[2]))
             e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
                                                      -8.0 * math.log(2.0)))
-            # the synthesizer's culling of weak echoes, done here (element-wise: the same echoes reach it)
             return [Echoes(*kernels.pair_power(b, q, dd, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
                                                p.grazing_ref_deg is not None, sin_ref, k_eq,
                                                10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
                                                self.synth._cull_w))]
 
-        # element-wise per pair: chunks joined in order give the same bits
         return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
 
     def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
@@ -404,19 +416,35 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         def adc(x: np.ndarray) -> np.ndarray:
             return adc_counts(x, noise_w, p.adc_db_per_count, p.adc_zero_db, p.adc_max_count)
 
+    def synthesize(e, draws, n):  # no randomness: on the pipeline's thread with threads > 1
+        up, down = sim.synth.synthesize(e, draws, n)
+        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
+            up = adc(up)
+            down = adc(down) if np.size(down) else down
+        return up, down
+
+    # turn k's synthesis runs on its own thread while this one computes turn k + 1's echoes and
+    # draws; the draws stay on this thread in the one-thread order, so the bits do not depend on it
+    pipe = _pool(1, "radar-sim-pipe") if sim.threads > 1 else None
+    pending = None
     turn = 0
     while True:
         t_ns = beam_times_ns(start, turn, config)
         n = int(np.searchsorted(t_ns, end))  # beams acquired before the end
-        if n == 0:
+        job = None
+        if n:
+            e, draws = sim.synth.draw(sim.echoes(trajectory, t_ns[:n], rng), n, rng)
+            job = (turn, t_ns, n, pipe.submit(synthesize, e, draws, n) if pipe else synthesize(e, draws, n))
+            if pipe is None:
+                pending, job = job, None
+        if pending is not None:
+            k, t_k, n_k, spectra = pending
+            up, down = spectra.result() if pipe else spectra
+            for j in range(n_k):
+                yield int(t_k[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), k, j, up[j], down[j], config)
+        if not n:
             return
-        up, down = sim.turn(trajectory, t_ns[:n], rng)
-        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
-            up = adc(up)
-            down = adc(down) if np.size(down) else down
-        for j in range(n):
-            yield int(t_ns[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), turn, j, up[j],
-                                                   down[j], config)
+        pending = job
         turn += 1
 
 

@@ -389,15 +389,9 @@ class Synthesizer:
         x = x[:, : self.config.n_bins] * self._scale
         return (0.5 * (x.real**2 + x.imag**2)).astype(np.float32)
 
-    def ramp(self, beam, f_hz, power_w, phase_rad, n_beams: int, rng, range_m=None) -> np.ndarray:
-        """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT,
-        then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
-        s = self.signal(beam, f_hz, np.sqrt(2.0 * power_w), phase_rad, n_beams).real
-        return self._spectrum(s, *self._draws(beam, f_hz, power_w, n_beams, rng, range_m))
-
     def _draws(self, beam, f_hz, power_w, n_beams: int, rng, range_m):
-        """The random parts of a ramp, drawn in :meth:`ramp`'s order: thermal noise samples
-        and phase-noise skirts (None when off)."""
+        """The random parts of a ramp, in this order: thermal noise samples and phase-noise skirts
+        (None when off)."""
         noise = skirts = None
         if self.params.thermal_noise:
             noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
@@ -409,15 +403,6 @@ class Synthesizer:
                 self.noise_per_bin_w, p.phase_noise_dbc_hz, p.phase_noise_offset_hz, rng).astype(np.float32)
         return noise, skirts
 
-    def _spectrum(self, s, noise, skirts) -> np.ndarray:
-        """:meth:`ramp` once the echoes' signal ``s`` and the draws are there."""
-        if noise is not None:
-            s = s + noise
-        spec = self.power_spectrum(s)
-        if skirts is not None:
-            spec += skirts
-        return spec
-
     def spectra(self, e: Echoes, n_beams: int, rng) -> tuple[np.ndarray, np.ndarray]:
         """(up, down) power spectra; ``down`` is (n_beams, 0) for a radar without Doppler.
 
@@ -428,30 +413,39 @@ class Synthesizer:
         f_nominal = 2 f = f_r + 2 f_d of eq. 2), so ``range_of_bin_m`` holds and a radial
         speed V moves the apparent range by V f0 / (dF Fm) (:func:`apparent_range_shift_m`).
         """
+        return self.synthesize(*self.draw(e, n_beams, rng), n_beams, self.pool)
+
+    def draw(self, e: Echoes, n_beams: int, rng) -> tuple[Echoes, list]:
+        """The echoes kept (weak ones culled) and the random draws of :meth:`spectra`, in its
+        order: per ramp (up then down) the thermal noise and the phase-noise skirts. The rest
+        (:meth:`synthesize`) draws nothing, so it may run on another thread, later."""
         if self.params.thermal_noise and len(e.power_w):
             strong = e.power_w >= self._cull_w
             if not strong.all():
                 e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
                            e.power_w[strong], e.phase_rad[strong])
-        # bin k holds range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m); per ramp, one compiled pass
-        # gives each echo its beat frequency f, phase and kernel values (beat_frequencies_hz's arithmetic)
+        return e, [self._draws(e.beam, self._beat_hz(e, mode), e.power_w, n_beams, rng, e.range_m)
+                   for mode in self._modes()]
+
+    def _modes(self) -> tuple[int, ...]:
+        return (0,) if self.single_ramp else (1, 2)
+
+    def _beat_hz(self, e: Echoes, mode: int) -> np.ndarray:
+        """Beat frequency of each echo in a ramp (``mode`` as :meth:`_prepare`); bin k holds
+        range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m)."""
+        f_r, f_d = beat_frequencies_hz(e.range_m - self.config.range_offset_m, e.radial_mps, self.config)
+        return f_r + 2.0 * f_d if mode == 0 else f_r + f_d if mode == 1 else f_r - f_d
+
+    def synthesize(self, e: Echoes, draws: list, n_beams: int, pool=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`spectra` once :meth:`draw` has culled the echoes and drawn; per ramp, one compiled
+        pass gives each echo its beat frequency, phase and kernel values (:meth:`_prepare`), then
+        the grid, IFFT and spectrum. With a ``pool``, the down ramp runs there beside the up ramp."""
         if self.single_ramp:
-            up = self._ramp(e, 0, n_beams, rng)
-            return up, np.zeros((n_beams, 0), np.float32)
-        if self.pool is None:
-            up = self._ramp(e, 1, n_beams, rng)
-            down = self._ramp(e, 2, n_beams, rng)
-            return up, down
-        # the down ramp on a second thread: its NUFFT (no randomness) from now, its spectrum once this
-        # thread has drawn both ramps' noise in ramp()'s order (a one-worker pool runs them in turn)
-        prep_job = self.pool.submit(self._prepare, e, 2)
-        grid_job = self.pool.submit(lambda: self._grid(*prep_job.result()[1:], n_beams))
-        f_up, *prep_up = self._prepare(e, 1)
-        draws_up = self._draws(e.beam, f_up, e.power_w, n_beams, rng, e.range_m)
-        draws_down = self._draws(e.beam, prep_job.result()[0], e.power_w, n_beams, rng, e.range_m)
-        down = self.pool.submit(lambda: self._spectrum_of_grid(grid_job.result(), *draws_down))
-        up = self._spectrum_of_grid(self._grid(*prep_up, n_beams), *draws_up)
-        return up, down.result()
+            return self._ramp(e, 0, n_beams, draws[0]), np.zeros((n_beams, 0), np.float32)
+        if pool is None:
+            return self._ramp(e, 1, n_beams, draws[0]), self._ramp(e, 2, n_beams, draws[1])
+        down = pool.submit(self._ramp, e, 2, n_beams, draws[1])
+        return self._ramp(e, 1, n_beams, draws[0]), down.result()
 
     def _prepare(self, e: Echoes, mode: int):
         """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
@@ -468,15 +462,16 @@ class Synthesizer:
             m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
             np.float32(_KERNEL_BETA))
 
-    def _ramp(self, e: Echoes, mode: int, n_beams: int, rng) -> np.ndarray:
-        """:meth:`ramp` of the echoes ``e`` (``mode`` as :meth:`_prepare`)."""
-        f, *prep = self._prepare(e, mode)
-        z = self._grid(*prep, n_beams)
-        return self._spectrum_of_grid(z, *self._draws(e.beam, f, e.power_w, n_beams, rng, e.range_m))
+    def _ramp(self, e: Echoes, mode: int, n_beams: int, draws) -> np.ndarray:
+        """Power spectra of one ramp (``mode`` as :meth:`_prepare`) of the echoes ``e`` with its ``draws``:
+        spread, IFFT, noise, window, FFT, then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
+        z = self._grid(*self._prepare(e, mode)[1:], n_beams)
+        return self._spectrum_of_grid(z, *draws)
 
     def _spectrum_of_grid(self, z, noise, skirts) -> np.ndarray:
-        """:meth:`_spectrum` of the signal ``z[:, time_index] * deapodize`` from :meth:`_grid`'s IFFT, in
-        compiled passes with numpy's arithmetic (complex times real, then noise, window; the bins' powers)."""
+        """The power spectrum (:meth:`power_spectrum`) of the signal ``z[:, time_index] * deapodize`` from
+        :meth:`_grid`'s IFFT plus the ``noise``, then the ``skirts`` added, in compiled passes with numpy's
+        arithmetic (complex times real, noise, window; the bins' powers)."""
         from . import kernels  # numba: compiled (cached) at the first call, not at import
 
         empty = np.zeros((0, 0))
