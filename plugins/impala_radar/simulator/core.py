@@ -151,6 +151,7 @@ class RadarSimulator:
         self._cut_rad = params.cut_azimuth_rad(config)
         self._pattern = azimuth_pattern(config.beam_width_rad, params.sidelobe_db)
         self._veg = np.isin(world.kind, VEGETATION_KINDS)
+        self._pairs_hint = 0
 
     def range_limit_m(self, closing_mps: float) -> float:
         """Largest range whose beat frequency can fall below fs/2 (eq. 2)."""
@@ -298,10 +299,11 @@ class RadarSimulator:
                 blocks.start // bb, (blocks.stop - 1) // bb + 1, bb, mids, halves, far, far_bearing, near, bearing,
                 slack, far_slack, rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r_lim**2, ghost,
                 no_behind if behind is None else behind, behind is not None, segs_c, occ_all, occ_lo,
-                self.config.height_m, 0.05)]
+                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))]
 
         # blocks are independent: contiguous runs of them on the threads, joined in block order
         parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
+        self._pairs_hint = sum(len(p[0]) for p in parts) * 5 // 4  # the buffers' first size next turn
         if not parts:
             return Echoes.concat([])
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)

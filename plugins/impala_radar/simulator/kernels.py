@@ -262,20 +262,23 @@ def table_gain2(d_azimuth_rad, u_per_rad, inv_step, g2):
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def block_pairs(b_first, b_last, block, mids, halves, far, far_bearing, near, bearing, slack, far_slack,
                 rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r2_max, ghost, behind, use_behind, segs,
-                occ, occ_lo, radar_z_m, eps_m):
+                occ, occ_lo, radar_z_m, eps_m, cap):
     """The (beam, scatterer) pairs of the blocks ``b_first .. b_last - 1`` of ``block`` beams (the
     loop of :meth:`.core.RadarSimulator._static` in one pass): per block its candidates
     (:func:`block_candidates`), their walls (:func:`segments_clear`, ``ghost`` ones see through)
     and discs (``occ[occ_lo[i]:occ_lo[i + 1]]`` for the i-th block, on the ``behind`` ones when
     ``use_behind``; :func:`discs_transmission`) from the block's middle pose, then the pairs of
     :func:`static_pairs` among the visible ones. Returns the pairs' beam, scatterer, and
-    (6, n) dx, dy, along, across, r2 and the two-way transmission."""
+    (6, n) dx, dy, along, across, r2 and the two-way transmission; ``cap`` is the first guess
+    of their number (the buffers grow if it is short)."""
     n_beams = rx.shape[0]
-    cap = 1 << 15
+    cap = max(cap, 1024)
     beam = np.empty(cap, np.intp)
     jj = np.empty(cap, np.intp)
     d = np.empty((6, cap))
     n = 0
+    ns = sx.shape[0]
+    gq, gx, gy, gt, gv = np.empty(ns, np.intp), np.empty(ns), np.empty(ns), np.empty(ns), np.empty(ns)
     for b in range(b_first, b_last):
         b0, b1 = b * block, min(n_beams, (b + 1) * block)
         j = block_candidates(far, far_bearing, near, bearing, slack, mids[b], halves[b], far_slack)
@@ -300,20 +303,23 @@ def block_pairs(b_first, b_last, block, mids, halves, far, far_bearing, near, be
             beam2, jj2, d2 = np.empty(cap, np.intp), np.empty(cap, np.intp), np.empty((6, cap))
             beam2[:n], jj2[:n], d2[:, :n] = beam[:n], jj[:n], d[:, :n]
             beam, jj, d = beam2, jj2, d2
-        for bm in range(b0, b1):
-            c, s = cos_b[bm], sin_b[bm]
-            for i in range(nj):
-                if not vis[i] > 0.0:
-                    continue
+        nv = 0  # the visible candidates, gathered
+        for i in range(nj):
+            if vis[i] > 0.0:
                 q = j[i]
-                dx = sx[q] - rx[bm]
-                dy = sy[q] - ry[bm]
+                gq[nv], gx[nv], gy[nv], gt[nv], gv[nv] = q, sx[q], sy[q], tan_cut[q], vis[i]
+                nv += 1
+        for bm in range(b0, b1):
+            c, s, px_b, py_b = cos_b[bm], sin_b[bm], rx[bm], ry[bm]
+            for i in range(nv):
+                dx = gx[i] - px_b
+                dy = gy[i] - py_b
                 along = dx * c + dy * s
                 across = dy * c - dx * s
                 r2 = dx * dx + dy * dy
-                if along > 0.0 and abs(across) <= tan_cut[q] * along and r2 <= r2_max:
-                    beam[n], jj[n] = bm, q
-                    d[0, n], d[1, n], d[2, n], d[3, n], d[4, n], d[5, n] = dx, dy, along, across, r2, vis[i]
+                if along > 0.0 and abs(across) <= gt[i] * along and r2 <= r2_max:
+                    beam[n], jj[n] = bm, gq[i]
+                    d[0, n], d[1, n], d[2, n], d[3, n], d[4, n], d[5, n] = dx, dy, along, across, r2, gv[i]
                     n += 1
     return beam[:n], jj[:n], d[:, :n]
 
@@ -417,13 +423,7 @@ def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset
     Returns (f for every echo, arg, base, phase32, amp32)."""
     n, width = beam.shape[0], offsets.shape[0]
     f_all = np.empty(n)
-    arg = np.empty((n, width), np.float32)
-    base = np.empty(n, np.intp)
-    ph32 = np.empty(n, np.float32)
-    amp32 = np.empty(n, np.float32)
-    one = np.float32(1.0)
-    zero = np.float32(0.0)
-    m = 0
+    ph_all = np.empty(n)
     for i in range(n):
         f_r = c_range * (range_m[i] - range_offset_m)
         f_d = c_doppler * radial[i]
@@ -437,22 +437,34 @@ def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset
             f = f_r - f_d
             ph = phase[i] + k_phase * (range_m[i] + c_half * radial[i])
         f_all[i] = f
-        if not abs(f) < half_fs:
-            continue
-        x = _mod(f * scale, m_grid)
+        ph_all[i] = ph
+    keep = np.empty(n, np.intp)
+    m = 0
+    for i in range(n):
+        if abs(f_all[i]) < half_fs:
+            keep[m] = i
+            m += 1
+    frac = np.empty(m, np.float32)
+    base = np.empty(m, np.intp)
+    ph32 = np.empty(m, np.float32)
+    amp32 = np.empty(m, np.float32)
+    for t in range(m):
+        i = keep[t]
+        x = _mod(f_all[i] * scale, m_grid)
         i0 = math.floor(x)
-        frac = np.float32(x - i0)
-        base[m] = np.intp(beam[i]) * row + np.intp(i0)
+        frac[t] = np.float32(x - i0)
+        base[t] = np.intp(beam[i]) * row + np.intp(i0)
+        amp32[t] = np.float32(np.sqrt(2.0 * power[i]))
+    for t in range(m):
+        ph32[t] = np.float32(_mod_2pi(ph_all[keep[t]]))
+    arg = np.empty((m, width), np.float32)
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    for t in range(m):
         for k in range(width):
-            u = (offsets[k] - frac) * u_scale
-            v = one - u * u
-            if not v >= zero:  # np.maximum(v, 0)
-                v = zero
-            arg[m, k] = beta * (np.sqrt(v) - one)
-        ph32[m] = np.float32(_mod_2pi(ph))
-        amp32[m] = np.float32(np.sqrt(2.0 * power[i]))
-        m += 1
-    return f_all, arg[:m], base[:m], ph32[:m], amp32[:m]
+            u = (offsets[k] - frac[t]) * u_scale
+            arg[t, k] = beta * (np.sqrt(max(one - u * u, zero)) - one)  # u is finite: max is np.maximum
+    return f_all, arg, base, ph32, amp32
 
 
 @numba.njit(cache=True, nogil=True)
@@ -462,23 +474,25 @@ def spread_fold(base, ker, amp32, cos32, sin32, n_beams, m_grid, o):
     (padded column c is grid point (c - o) mod M), as :meth:`.spectra.Synthesizer.signal` does."""
     width = ker.shape[1]
     row = m_grid + width - 1
-    b_re = np.zeros(n_beams * row)
-    b_im = np.zeros(n_beams * row)
+    g = np.zeros(2 * n_beams * row)  # re, im interleaved: the same sums, closer in memory
     for i in range(base.shape[0]):
-        ar, ai, b = amp32[i] * cos32[i], amp32[i] * sin32[i], base[i]
+        ar, ai, b = amp32[i] * cos32[i], amp32[i] * sin32[i], 2 * base[i]
         for k in range(width):
             w = ker[i, k]
-            b_re[b + k] += np.float64(w * ar)
-            b_im[b + k] += np.float64(w * ai)
+            g[b + 2 * k] += np.float64(w * ar)
+            g[b + 2 * k + 1] += np.float64(w * ai)
     out = np.empty((n_beams, m_grid), np.complex128)
     for r in range(n_beams):
-        p0 = r * row
+        p0 = 2 * r * row
         for c in range(m_grid):
-            out[r, c] = _b(b_re[p0 + o + c], b_im[p0 + o + c])
+            q = p0 + 2 * (o + c)
+            out[r, c] = _b(g[q], g[q + 1])
         for c in range(o):  # b[:, M - o:] += padded[:, :o]
-            out[r, m_grid - o + c] += _b(b_re[p0 + c], b_im[p0 + c])
+            q = p0 + 2 * c
+            out[r, m_grid - o + c] += _b(g[q], g[q + 1])
         for c in range(width - 1 - o):  # b[:, :width - 1 - o] += padded[:, o + M:]
-            out[r, c] += _b(b_re[p0 + o + m_grid + c], b_im[p0 + o + m_grid + c])
+            q = p0 + 2 * (o + m_grid + c)
+            out[r, c] += _b(g[q], g[q + 1])
     return out
 
 
