@@ -1,6 +1,6 @@
 """The simulator's per-turn compiled passes (impala_radar.simulator.kernels: block_pairs,
-pair_ranges / pair_power, ramp_echoes, spread_fold, windowed_samples, bin_powers, the exact
-mod 2 pi) give, bit for bit, what the formulations they replaced give: the per-block loop of
+pair_ranges / pair_power; synth_kernels: ramp_echoes, spread_fold, windowed_samples, bin_powers,
+the exact mod 2 pi) give, bit for bit, what the formulations they replaced give: the per-block loop of
 candidates, walls, discs and pairs, spectra.pair_echoes, and the numpy expressions of the
 synthesizer written out below. So seeded missions did not change."""
 
@@ -12,7 +12,7 @@ import numpy as np
 import scipy.fft
 
 from impala_msgs import SPEED_OF_LIGHT_MPS
-from impala_radar.simulator import kernels
+from impala_radar.simulator import kernels, synth_kernels
 from impala_radar.simulator.presets import preset
 from impala_radar.simulator.spectra import Echoes, RadarParams, Synthesizer, pair_echoes
 from impala_radar.simulator.world import World, disc_transmission
@@ -34,8 +34,8 @@ def test_mod_2pi_is_numpys_remainder_for_every_magnitude() -> None:
                         [0.0, -0.0, 5e-324, -5e-324, 2.0**24 * TWO_PI, 1e300, -1e300, np.inf, -np.inf, np.nan]])
     with np.errstate(invalid="ignore"):
         want = a % TWO_PI
-    _bits_equal(np.array([kernels._mod_2pi(x) for x in a]), want)
-    _bits_equal(kernels.wrap_phase32(a), want.astype(np.float32))
+    _bits_equal(np.array([synth_kernels._mod_2pi(x) for x in a]), want)
+    _bits_equal(synth_kernels.wrap_phase32(a), want.astype(np.float32))
 
 
 def _echoes(rng, n: int, n_beams: int, max_range_m: float = 140.0) -> Echoes:
@@ -63,9 +63,9 @@ def test_a_ramps_echoes_are_prepared_as_the_numpy_synthesizer_did() -> None:
             _bits_equal(syn._beat_hz(e, mode), f)
             ok = np.abs(f) < 0.5 * syn.fs_hz
             assert 0 < ok.sum() < len(f)  # both sides of the band exercised
-            x = kernels.grid_positions(f[ok], syn.n_grid / syn.fs_hz, float(syn.n_grid))
-            want_arg, want_base = kernels.kernel_arguments(x, e.beam[ok], syn.n_grid + 5, syn._offsets, syn._u_scale,
-                                                           np.float32(2.3 * 6))
+            x = synth_kernels.grid_positions(f[ok], syn.n_grid / syn.fs_hz, float(syn.n_grid))
+            want_arg, want_base = synth_kernels.kernel_arguments(x, e.beam[ok], syn.n_grid + 5, syn._offsets,
+                                                                 syn._u_scale, np.float32(2.3 * 6))
             _bits_equal(arg, want_arg)
             _bits_equal(base, want_base)
             _bits_equal(ph32, (ph[ok] % TWO_PI).astype(np.float32))
@@ -78,16 +78,16 @@ def test_spread_fold_is_the_bincount_grid_folded() -> None:
     row, o = m_grid + width - 1, width // 2 - 1
     beam = np.sort(rng.integers(0, n_beams, n))
     x = rng.uniform(0.0, m_grid, n)
-    arg, base = kernels.kernel_arguments(x, beam, row, (np.arange(width) - o).astype(np.float32),
+    arg, base = synth_kernels.kernel_arguments(x, beam, row, (np.arange(width) - o).astype(np.float32),
                                          np.float32(2.0 / width), np.float32(2.3 * width))
     ker = np.exp(arg)
     amp, ph = rng.uniform(0, 1e-4, n).astype(np.float32), rng.uniform(0, TWO_PI, n).astype(np.float32)
-    b_re, b_im = kernels.spread(base, ker, amp * np.cos(ph), amp * np.sin(ph), n_beams * row)
+    b_re, b_im = synth_kernels.spread(base, ker, amp * np.cos(ph), amp * np.sin(ph), n_beams * row)
     padded = (b_re + 1j * b_im).reshape(n_beams, row)
     want = padded[:, o:o + m_grid].copy()
     want[:, m_grid - o:] += padded[:, :o]
     want[:, : width - 1 - o] += padded[:, o + m_grid:]
-    _bits_equal(kernels.spread_fold(base, ker, amp, np.cos(ph), np.sin(ph), n_beams, m_grid, o), want)
+    _bits_equal(synth_kernels.spread_fold(base, ker, amp, np.cos(ph), np.sin(ph), n_beams, m_grid, o), want)
 
 
 def test_samples_and_bin_powers_are_the_numpy_expressions() -> None:
@@ -99,14 +99,14 @@ def test_samples_and_bin_powers_are_the_numpy_expressions() -> None:
     noise = rng.standard_normal((n_beams, syn.n_samples))
     s = (z[:, syn._time_index] * syn._deapodize).real
     for nz in (noise, np.zeros((0, 0))):
-        got = kernels.windowed_samples(z, syn._time_index, syn._deapodize, nz, syn.window)
+        got = synth_kernels.windowed_samples(z, syn._time_index, syn._deapodize, nz, syn.window)
         _bits_equal(got, (s + nz if nz.size else s) * syn.window)
     x = scipy.fft.rfft(s * syn.window, n=syn.n_fft, axis=1)
     skirts = rng.uniform(0, 1e-15, (n_beams, config.n_bins)).astype(np.float32)
     xs = x[:, : config.n_bins] * syn._scale
     want = (0.5 * (xs.real**2 + xs.imag**2)).astype(np.float32)
-    _bits_equal(kernels.bin_powers(x, config.n_bins, syn._scale, np.zeros((0, 0), np.float32)), want)
-    _bits_equal(kernels.bin_powers(x, config.n_bins, syn._scale, skirts), want + skirts)
+    _bits_equal(synth_kernels.bin_powers(x, config.n_bins, syn._scale, np.zeros((0, 0), np.float32)), want)
+    _bits_equal(synth_kernels.bin_powers(x, config.n_bins, syn._scale, skirts), want + skirts)
     _bits_equal(syn.power_spectrum(s), want)  # with the window, as the synthesizer's FFT
 
 

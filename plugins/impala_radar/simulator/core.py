@@ -4,7 +4,7 @@
 ``heapq.merge``: ``"beams"`` -> :class:`~impala_msgs.RadarBeam`, ``"movers"`` ->
 :class:`~impala_msgs.ObjectStates` (10 Hz), and one port per proprioceptive sensor
 (``"odometer"``, ``"gyro"``, ``"gps"`` from :mod:`impala_radar.simulator.sensors`). At most one
-antenna turn is held in memory.
+antenna turn is held in memory (two with threads: one being synthesized while the next is computed).
 
 Beam timing: beam ``j`` of turn ``k`` is acquired during one modulation period centred at
 ``t = start + (k B + j + 1/2) / (B f_rot)`` (integer ns) with the antenna at
@@ -24,23 +24,26 @@ parked cars, movers swept over the turn) marks what may be shadowed; the turn is
 into blocks of 8 beams; per block the scatterers whose bearing can fall inside the beams'
 pattern are selected (bearing from the turn centre, widened by the pose spread), their
 occlusion (walls; discs on the marked ones) is tested at the block's middle pose (8 beams =
-22 ms of motion), and the (beam, scatterer) pairs inside the beams' pattern are kept; the
-echoes of all blocks' pairs are then evaluated in one vectorised pass. The loops over
-scatterers (block selection, pairs, ray tests, NUFFT spreading) are compiled with numba
-(:mod:`.kernels`, cached on disk, compiled at their first call), with the arithmetic of the
-numpy formulation they replaced, so seeded missions are the same bit for bit; the
-transcendental functions stay numpy's. Movers are evaluated over
+22 ms of motion), and the (beam, scatterer) pairs inside the beams' pattern are kept, all
+blocks in one compiled pass (:func:`.kernels.block_pairs`); the echoes of all the pairs are
+then evaluated at once, the arithmetic compiled around numpy's transcendental functions, and
+the echoes too weak to change the noise floor culled there. The loops over scatterers and
+echoes (block selection, pairs, ray tests, physics, NUFFT preparation and spreading) are
+compiled with numba (:mod:`.kernels`, :mod:`.synth_kernels`, cached on disk, compiled at their first call), with the
+arithmetic of the numpy formulation they replaced, so seeded missions are the same bit for
+bit; the transcendental functions stay numpy's. Movers are evaluated over
 the whole turn at every beam time, occlusion included (walls and static discs). With the
 transmitter leakage echoes, all echoes of the turn then go through one
-:class:`~impala_radar.simulator.spectra.Synthesizer` call.
+:class:`~impala_radar.simulator.spectra.Synthesizer`: :meth:`~.Synthesizer.draw` (the random
+draws) then :meth:`~.Synthesizer.synthesize` (no randomness).
 
-Threads (``threads``, default :func:`default_threads`: the cores, at most 2): the blocks
-run in contiguous runs, one per thread, and so do the echo physics of the pairs (element-wise);
-the runs are joined in their order, and the down ramp's NUFFT and spectrum run beside the up
-ramp's while this thread draws both ramps' noise in the one-thread order. The compiled loops
-release the GIL, so does numpy on large arrays. A mission is the same bit for bit whatever
-the thread count; about 60 % of a turn's CPU time stays on the calling thread (scene, draws,
-glue), so two threads shorten a turn's wall time by up to 1.6x on a quiet machine.
+Threads (``threads``, default :func:`default_threads`: the cores, at most 2): turns are
+pipelined, turn k's synthesis (NUFFT, spectra, output stage) running on a thread of its own
+while the calling thread computes turn k + 1's echoes and draws its noise (so two turns are in
+memory at most); the blocks and the echo physics of a turn run in contiguous runs, one per
+thread, joined in their order. The random stream is drawn on the calling thread in the
+one-thread order, the compiled loops release the GIL, so does numpy on large arrays. A mission
+is the same bit for bit whatever the thread count.
 """
 
 from __future__ import annotations

@@ -48,7 +48,7 @@ Kernel and phasors are evaluated in float32 (SIMD; relative error 1e-7). The err
 resulting power spectrum is below -100 dB relative to the strongest echo (checked against
 direct summation in tests/radar/test_sim_spectra.py), far under the Hann sidelobes and the
 thermal noise. Cost per ramp: 6 kernel values per echo (one compiled spreading loop over a
-whole turn, :mod:`.kernels`, the exponential being numpy's) plus two FFTs per beam, versus
+whole turn, :mod:`.synth_kernels`, the exponential being numpy's) plus two FFTs per beam, versus
 29 bins per echo for a Hann DTFT summed directly in the frequency domain and truncated at
 -60 dB, and N exponentials per echo for time-domain synthesis. The window is applied in the
 time domain, so any window and the exact fold of negative beat frequencies (near, fast
@@ -361,25 +361,25 @@ class Synthesizer:
         ok = np.abs(f_hz) < 0.5 * self.fs_hz
         if not ok.all():
             f_hz, amplitude, phase_rad, beam = f_hz[ok], amplitude[ok], phase_rad[ok], beam[ok]
-        from . import kernels  # numba: compiled (cached) at the first call, not at import
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
         m_grid, width = self.n_grid, _KERNEL_WIDTH
-        x = kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
+        x = synth_kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
         row = m_grid + width - 1  # one padded row per beam; wrapped columns folded in _grid
         # phi(m h - x_i) at the 6 grid points around x_i, in float32 (error 1e-7 << 1e-5)
-        arg, base = kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
+        arg, base = synth_kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
                                               np.float32(_KERNEL_BETA))
-        phase32 = kernels.wrap_phase32(np.asarray(phase_rad, float))
+        phase32 = synth_kernels.wrap_phase32(np.asarray(phase_rad, float))
         z = self._grid(arg, base, phase32, amplitude.astype(np.float32), n_beams)
         return z[:, self._time_index] * self._deapodize
 
     def _grid(self, arg, base, phase32, amp32, n_beams: int) -> np.ndarray:
         """The IFFT (n_beams, M) of the spread grid from the kernel's exponents ``arg`` at the grid
         points from ``base`` on, the phases and amplitudes (float32) of the echoes in the band."""
-        from . import kernels  # numba: compiled (cached) at the first call, not at import
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
         ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
-        b = kernels.spread_fold(base, ker, amp32, np.cos(phase32), np.sin(phase32), n_beams, self.n_grid,
+        b = synth_kernels.spread_fold(base, ker, amp32, np.cos(phase32), np.sin(phase32), n_beams, self.n_grid,
                                 _KERNEL_WIDTH // 2 - 1)
         return scipy.fft.ifft(b, axis=1)
 
@@ -449,12 +449,12 @@ class Synthesizer:
 
     def _prepare(self, e: Echoes, mode: int):
         """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
-        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.kernels.ramp_echoes`)."""
-        from . import kernels  # numba: compiled (cached) at the first call, not at import
+        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`)."""
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
         c = self.config
         m_grid = self.n_grid
-        return kernels.ramp_echoes(
+        return synth_kernels.ramp_echoes(
             np.ascontiguousarray(e.beam), *(np.ascontiguousarray(a, float) for a in (e.range_m, e.radial_mps,
                                                                                      e.power_w, e.phase_rad)),
             mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
@@ -472,11 +472,11 @@ class Synthesizer:
         """The power spectrum (:meth:`power_spectrum`) of the signal ``z[:, time_index] * deapodize`` from
         :meth:`_grid`'s IFFT plus the ``noise``, then the ``skirts`` added, in compiled passes with numpy's
         arithmetic (complex times real, noise, window; the bins' powers)."""
-        from . import kernels  # numba: compiled (cached) at the first call, not at import
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
         empty = np.zeros((0, 0))
-        s = kernels.windowed_samples(z, self._time_index, self._deapodize, empty if noise is None else noise,
+        s = synth_kernels.windowed_samples(z, self._time_index, self._deapodize, empty if noise is None else noise,
                                      self.window)
         x = scipy.fft.rfft(s, n=self.n_fft, axis=1)
-        return kernels.bin_powers(x, self.config.n_bins, self._scale,
+        return synth_kernels.bin_powers(x, self.config.n_bins, self._scale,
                                   np.zeros((0, 0), np.float32) if skirts is None else skirts)
