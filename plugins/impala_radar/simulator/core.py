@@ -310,8 +310,11 @@ class RadarSimulator:
         if not parts:
             return Echoes.concat([])
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
-        beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-        d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
+        if len(parts) == 1:  # one run: its arrays as they are
+            beam, jj, d = parts[0]
+        else:
+            beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+            d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
 
         return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
 

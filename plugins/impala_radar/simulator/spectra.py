@@ -78,7 +78,7 @@ from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 from .antenna import AzimuthPattern
 from .clutter import grazing_factor
-from .receiver import phase_noise_skirts
+from .receiver import phase_noise_skirts, skirt_echoes
 
 __all__ = [
     "RadarParams", "Echoes", "Synthesizer", "beat_frequencies_hz", "received_power_w",
@@ -227,6 +227,8 @@ class Echoes:
         if not parts:
             e = np.zeros(0)
             return cls(np.zeros(0, np.int64), e, e, e, e)
+        if len(parts) == 1:  # the part itself (its arrays are not copied)
+            return parts[0]
         return cls(*(np.concatenate([getattr(p, f) for p in parts])
                      for f in ("beam", "range_m", "radial_mps", "power_w", "phase_rad")))
 
@@ -391,12 +393,12 @@ class Synthesizer:
 
     def _draws(self, beam, f_hz, power_w, n_beams: int, rng, range_m):
         """The random parts of a ramp, in this order: thermal noise samples and phase-noise skirts
-        (None when off)."""
+        (None when off, or when no echo has any: adding zeros to powers >= 0 changes no bit)."""
         noise = skirts = None
         if self.params.thermal_noise:
             noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
         p = self.params
-        if p.phase_noise_dbc_hz is not None and range_m is not None:
+        if p.phase_noise_dbc_hz is not None and range_m is not None and len(power_w):
             skirts = phase_noise_skirts(
                 beam, f_hz, power_w, range_m, n_beams, self.config.bin_hz, self.config.n_bins,
                 self.config.bin_hz * self.hz_per_nominal_hz, self.ramp_s, self.enbw_bins,
@@ -424,7 +426,15 @@ class Synthesizer:
             if not strong.all():
                 e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
                            e.power_w[strong], e.phase_rad[strong])
-        return e, [self._draws(e.beam, self._beat_hz(e, mode), e.power_w, n_beams, rng, e.range_m)
+        # the skirts only need the echoes strong enough to have some (the same skirts and draws):
+        # found once for both ramps, and their beat frequencies only
+        s = e
+        p = self.params
+        if p.phase_noise_dbc_hz is not None:
+            k = skirt_echoes(e.power_w, e.range_m, self.ramp_s, self.enbw_bins, self.noise_per_bin_w,
+                             p.phase_noise_dbc_hz, p.phase_noise_offset_hz)
+            s = Echoes(e.beam[k], e.range_m[k], e.radial_mps[k], e.power_w[k], e.phase_rad[k])
+        return e, [self._draws(s.beam, self._beat_hz(s, mode), s.power_w, n_beams, rng, s.range_m)
                    for mode in self._modes()]
 
     def _modes(self) -> tuple[int, ...]:
