@@ -12,13 +12,15 @@ memory-bounded (one turn in flight).
 
 Stages (exclusive CPU time of the functions, by :class:`_Stages` wrappers, summed over the threads, ms per turn):
 ``scene`` the turn's scatterers (k-d tree query, clutter split, jitter, ghosts, azimuth
-windows, shadow prefilter); ``occlusion`` walls and discs per block; ``echoes`` the (beam, scatterer) pairs in the
-beams' pattern, their geometry, pattern gain and radar equation; ``movers``; ``blocks`` the rest
-of the turn loop (block selection, culling); ``spread`` the NUFFT (spreading onto the grid
-and its inverse FFT); ``noise`` thermal noise and the ramp's glue; ``fft`` the windowed
+windows, shadow prefilter); ``pairs`` the blocks' candidates, their walls and discs, and the
+(beam, scatterer) pairs in the beams' pattern (one compiled pass, with the discs near each block);
+``echoes`` the pairs' geometry, pattern gain and radar equation; ``movers``; ``blocks`` the rest
+of the turn's echoes (glue, joins); ``spread`` the NUFFT (each ramp's echoes prepared, spread
+onto the grid, inverse FFT); ``noise`` thermal noise and the culling; ``fft`` the windowed
 spectrum; ``phase_noise`` the skirts; ``adc`` the output stage; ``stream`` the rest (beam
-messages, proprioceptive sensors, merge; with threads, also the glue the second thread runs between
-the wrapped functions). The first call compiles the numba loops once per
+messages, proprioceptive sensors, merge; with threads, also the glue the other threads run between
+the wrapped functions). With 2 threads, turn k's synthesis (spread, fft, adc) runs on a thread of
+its own while the caller computes turn k + 1's echoes. The first call compiles the numba loops once per
 machine (cached on disk); the world build and that warm-up are outside the figures.
 
     python bench/simulator.py              # 20 turns, < 1 min
@@ -38,7 +40,7 @@ import time
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-STAGES = ("scene", "occlusion", "echoes", "movers", "blocks", "spread", "noise", "fft", "phase_noise",
+STAGES = ("scene", "pairs", "echoes", "movers", "blocks", "spread", "noise", "fft", "phase_noise",
           "adc", "stream")
 
 
@@ -90,16 +92,16 @@ def _instrument() -> _Stages:
     for owner, name, stage in [
         (World, "query", "scene"), (core.RadarSimulator, "_scene", "scene"),
         (core.RadarSimulator, "_windows", "scene"), (core, "_maybe_behind", "scene"),
-        (World, "visible", "occlusion"), (core, "disc_transmission", "occlusion"),
-        (core.RadarSimulator, "_block_discs", "occlusion"), (core.RadarSimulator, "_swept_mover_discs", "occlusion"),
-        (core, "echoes", "echoes"), (kernels, "static_pairs", "echoes"), (core, "pair_echoes", "echoes"),
+        (core.RadarSimulator, "_block_discs", "pairs"), (kernels, "block_pairs", "pairs"),
+        (core.RadarSimulator, "_swept_mover_discs", "pairs"),
+        (core.RadarSimulator, "_pair_echoes", "echoes"),
         (core.RadarSimulator, "_movers", "movers"),
-        (core.RadarSimulator, "turn", "blocks"), (core.RadarSimulator, "_static", "blocks"),
-        (spectra.Synthesizer, "spectra", "blocks"), (spectra.Synthesizer, "signal", "spread"),
-        (spectra.Synthesizer, "ramp", "noise"), (spectra.Synthesizer, "_draws", "noise"),
-        (spectra.Synthesizer, "_spectrum", "noise"),
-        (spectra.Synthesizer, "power_spectrum", "fft"),
-        (spectra, "phase_noise_skirts", "phase_noise"), (core, "adc_counts", "adc"),
+        (core.RadarSimulator, "echoes", "blocks"), (core.RadarSimulator, "_static", "blocks"),
+        (spectra.Synthesizer, "draw", "noise"), (spectra.Synthesizer, "_draws", "noise"),
+        (spectra, "phase_noise_skirts", "phase_noise"),
+        (spectra.Synthesizer, "synthesize", "spread"), (spectra.Synthesizer, "_prepare", "spread"),
+        (spectra.Synthesizer, "_grid", "spread"),
+        (spectra.Synthesizer, "_spectrum_of_grid", "fft"), (core, "adc_counts", "adc"),
     ]:
         st.wrap(owner, name, stage)
     return st

@@ -1,4 +1,4 @@
-"""The simulator's compiled loops (impala_radar.simulator.kernels) give, bit for bit, what the
+"""The simulator's compiled loops (impala_radar.simulator.kernels, synth_kernels) give, bit for bit, what the
 numpy formulations they replaced give (np.bincount, np.remainder, np.unwrap, dense ray tests
 written out below), so seeded missions did not change; and importing the simulator does not
 import numba (the loops compile, or load from the cache, at their first call)."""
@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 
-from impala_radar.simulator import kernels
+from impala_radar.simulator import kernels, synth_kernels
 from impala_radar.simulator.world import World, disc_transmission
 
 
@@ -29,10 +29,10 @@ def test_importing_the_simulator_does_not_import_numba() -> None:
 def test_remainders_are_numpys() -> None:
     rng = np.random.default_rng(3)
     a = np.concatenate([rng.normal(0.0, 300.0, 5000), rng.normal(0.0, 1e5, 5000), [0.0, -0.0, -1e-300, 575.9999]])
-    got = kernels.grid_positions(a, 1.0, 576.0)
+    got = synth_kernels.grid_positions(a, 1.0, 576.0)
     np.testing.assert_array_equal(got, a % 576.0)
     assert not np.signbit(got).any()  # -0.0 -> +0.0 as numpy does
-    np.testing.assert_array_equal(kernels.wrap_phase32(a), (a % (2.0 * math.pi)).astype(np.float32))
+    np.testing.assert_array_equal(synth_kernels.wrap_phase32(a), (a % (2.0 * math.pi)).astype(np.float32))
 
 
 def test_spreading_is_bincounts_sum() -> None:
@@ -44,13 +44,13 @@ def test_spreading_is_bincounts_sum() -> None:
     beam = rng.integers(0, n_beams, n)
     offsets = (np.arange(width) - (width // 2 - 1)).astype(np.float32)
     u_scale, beta = np.float32(2.0 / width), np.float32(2.3 * width)
-    arg, base = kernels.kernel_arguments(x, beam, row, offsets, u_scale, beta)
+    arg, base = synth_kernels.kernel_arguments(x, beam, row, offsets, u_scale, beta)
     i0 = np.floor(x)
     u = (offsets[None, :] - (x - i0).astype(np.float32)[:, None]) * u_scale
     np.testing.assert_array_equal(arg, beta * (np.sqrt(np.maximum(np.float32(1.0) - u * u, 0)) - np.float32(1.0)))
     ker = np.exp(arg)
     a_re, a_im = rng.normal(size=n).astype(np.float32), rng.normal(size=n).astype(np.float32)
-    b_re, b_im = kernels.spread(base, ker, a_re, a_im, n_beams * row)
+    b_re, b_im = synth_kernels.spread(base, ker, a_re, a_im, n_beams * row)
     flat = ((beam * row + i0.astype(np.intp))[:, None] + np.arange(width)).ravel()
     np.testing.assert_array_equal(b_re, np.bincount(flat, (ker * a_re[:, None]).ravel(), n_beams * row))
     np.testing.assert_array_equal(b_im, np.bincount(flat, (ker * a_im[:, None]).ravel(), n_beams * row))

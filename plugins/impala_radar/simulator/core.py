@@ -4,7 +4,7 @@
 ``heapq.merge``: ``"beams"`` -> :class:`~impala_msgs.RadarBeam`, ``"movers"`` ->
 :class:`~impala_msgs.ObjectStates` (10 Hz), and one port per proprioceptive sensor
 (``"odometer"``, ``"gyro"``, ``"gps"`` from :mod:`impala_radar.simulator.sensors`). At most one
-antenna turn is held in memory.
+antenna turn is held in memory (two with threads: one being synthesized while the next is computed).
 
 Beam timing: beam ``j`` of turn ``k`` is acquired during one modulation period centred at
 ``t = start + (k B + j + 1/2) / (B f_rot)`` (integer ns) with the antenna at
@@ -24,23 +24,26 @@ parked cars, movers swept over the turn) marks what may be shadowed; the turn is
 into blocks of 8 beams; per block the scatterers whose bearing can fall inside the beams'
 pattern are selected (bearing from the turn centre, widened by the pose spread), their
 occlusion (walls; discs on the marked ones) is tested at the block's middle pose (8 beams =
-22 ms of motion), and the (beam, scatterer) pairs inside the beams' pattern are kept; the
-echoes of all blocks' pairs are then evaluated in one vectorised pass. The loops over
-scatterers (block selection, pairs, ray tests, NUFFT spreading) are compiled with numba
-(:mod:`.kernels`, cached on disk, compiled at their first call), with the arithmetic of the
-numpy formulation they replaced, so seeded missions are the same bit for bit; the
-transcendental functions stay numpy's. Movers are evaluated over
+22 ms of motion), and the (beam, scatterer) pairs inside the beams' pattern are kept, all
+blocks in one compiled pass (:func:`.kernels.block_pairs`); the echoes of all the pairs are
+then evaluated at once, the arithmetic compiled around numpy's transcendental functions, and
+the echoes too weak to change the noise floor culled there. The loops over scatterers and
+echoes (block selection, pairs, ray tests, physics, NUFFT preparation and spreading) are
+compiled with numba (:mod:`.kernels`, :mod:`.synth_kernels`, cached on disk, compiled at their first call), with the
+arithmetic of the numpy formulation they replaced, so seeded missions are the same bit for
+bit; the transcendental functions stay numpy's. Movers are evaluated over
 the whole turn at every beam time, occlusion included (walls and static discs). With the
 transmitter leakage echoes, all echoes of the turn then go through one
-:class:`~impala_radar.simulator.spectra.Synthesizer` call.
+:class:`~impala_radar.simulator.spectra.Synthesizer`: :meth:`~.Synthesizer.draw` (the random
+draws) then :meth:`~.Synthesizer.synthesize` (no randomness).
 
-Threads (``threads``, default :func:`default_threads`: the cores, at most 2): the blocks
-run in contiguous runs, one per thread, and so do the echo physics of the pairs (element-wise);
-the runs are joined in their order, and the down ramp's NUFFT and spectrum run beside the up
-ramp's while this thread draws both ramps' noise in the one-thread order. The compiled loops
-release the GIL, so does numpy on large arrays. A mission is the same bit for bit whatever
-the thread count; about 60 % of a turn's CPU time stays on the calling thread (scene, draws,
-glue), so two threads shorten a turn's wall time by up to 1.6x on a quiet machine.
+Threads (``threads``, default :func:`default_threads`: the cores, at most 2): turns are
+pipelined, turn k's synthesis (NUFFT, spectra, output stage) running on a thread of its own
+while the calling thread computes turn k + 1's echoes and draws its noise (so two turns are in
+memory at most); the blocks and the echo physics of a turn run in contiguous runs, one per
+thread, joined in their order. The random stream is drawn on the calling thread in the
+one-thread order, the compiled loops release the GIL, so does numpy on large arrays. A mission
+is the same bit for bit whatever the thread count.
 """
 
 from __future__ import annotations
@@ -66,7 +69,6 @@ from .spectra import (
     Synthesizer,
     azimuth_pattern,
     echoes,
-    pair_echoes,
     received_power_w,
 )
 from .world import VEGETATION_KINDS, World, car_discs, disc_transmission
@@ -92,7 +94,7 @@ def beam_azimuths_rad(config: RadarConfig, params: RadarParams = DEFAULT_PARAMS)
 
 
 _POLAR_BIN_RAD = math.radians(0.5)
-_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS: dict[tuple[int, str], ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
 
 
@@ -103,12 +105,12 @@ def default_threads() -> int:
     return max(1, min(2, cores or 1))
 
 
-def _pool(workers: int) -> ThreadPoolExecutor:
-    """A process-wide pool of ``workers`` threads (shared by the simulators, created once)."""
+def _pool(workers: int, name: str = "radar-sim") -> ThreadPoolExecutor:
+    """A process-wide pool of ``workers`` threads named ``name`` (shared by the simulators, created once)."""
     with _POOLS_LOCK:
-        if workers not in _POOLS:
-            _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="radar-sim")
-        return _POOLS[workers]
+        if (workers, name) not in _POOLS:
+            _POOLS[workers, name] = ThreadPoolExecutor(workers, thread_name_prefix=name)
+        return _POOLS[workers, name]
 
 
 def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
@@ -152,6 +154,7 @@ class RadarSimulator:
         self._cut_rad = params.cut_azimuth_rad(config)
         self._pattern = azimuth_pattern(config.beam_width_rad, params.sidelobe_db)
         self._veg = np.isin(world.kind, VEGETATION_KINDS)
+        self._pairs_hint = 0
 
     def range_limit_m(self, closing_mps: float) -> float:
         """Largest range whose beat frequency can fall below fs/2 (eq. 2)."""
@@ -160,6 +163,11 @@ class RadarSimulator:
 
     def turn(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator):
         """(up, down) spectra (B, n_bins) float32 of the beams acquired at ``t_ns``."""
+        return self.synth.spectra(self.echoes(trajectory, t_ns, rng), len(t_ns), rng)
+
+    def echoes(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> Echoes:
+        """The echoes of the beams acquired at ``t_ns`` (static, movers, leakage): what :meth:`turn`
+        gives the synthesizer; ``rng`` draws the vegetation's jitter."""
         pose = trajectory.pose(t_ns)
         speed, _ = trajectory.velocity(t_ns)
         radar_xy = np.ascontiguousarray(pose[:, :2])
@@ -177,7 +185,7 @@ class RadarSimulator:
         if self.params.leakage_dbm is not None:
             p_w = 10.0 ** (self.params.leakage_dbm / 10.0) * 1e-3
             parts.append(Echoes(*leakage_echoes(len(t_ns), p_w, self.params.leakage_range_m)))
-        return self.synth.spectra(Echoes.concat(parts), len(t_ns), rng)
+        return Echoes.concat(parts)
 
     def _windows(self, rc, sz, rcs, area):
         """Azimuth half-window per scatterer (:mod:`.antenna`): where its echo can still
@@ -280,49 +288,60 @@ class RadarSimulator:
         mids, halves = kernels.block_spans(beam_dir, bb)  # np.unwrap of each block's directions
 
         rx, ry = radar_xy[:, 0].copy(), radar_xy[:, 1].copy()
+        cos_b, sin_b = np.cos(beam_dir), np.sin(beam_dir)
+        segs_c = np.ascontiguousarray(segs, float).reshape(-1, 4)
+        no_behind = np.zeros(0, bool)
 
-        def block(b0):  # the (beam, scatterer) pairs of the block of beams starting at b0
-            sl = slice(b0, min(n, b0 + bb))
-            mid, half = float(mids[b0 // bb]), float(halves[b0 // bb])
-            j = kernels.block_candidates(far, far_bearing, near, bearing, slack, mid, half, far_slack)
-            if j.size == 0:
-                return None
-            vis = None
-            pos = radar_xy[(sl.start + sl.stop - 1) // 2]
-            if len(segs):
-                vis = w.visible(pos, sx[j], sy[j], segs) | ghost[j]
-            occ = self._block_discs(discs, pos, mid, half + self._cut_rad, t_ns[(sl.start + sl.stop - 1) // 2])
-            if len(occ):
-                cand = behind[j] if behind is not None else np.ones(len(j), bool)
-                if cand.any():
-                    tr = np.ones(len(j))
-                    jc = j[cand]
-                    tr[cand] = disc_transmission(pos, self.config.height_m, sx[jc], sy[jc], sz[jc], occ)
-                    vis = tr if vis is None else tr * vis
-            # select_pairs' compiled loop, called directly with the block's arrays (no copies)
-            bi, si, d = kernels.static_pairs(rx[sl], ry[sl], np.cos(beam_dir[sl]), np.sin(beam_dir[sl]), sx[j],
-                                             sy[j], tan_cut[j], r_lim**2, np.ones(len(j), bool) if vis is None
-                                             else vis > 0)
-            shadow = vis[si] if vis is not None and vis.dtype != bool else None
-            return sl.start + bi, j[si], d, shadow
+        def run(blocks: range):  # the pairs of a run of blocks: their discs here, the rest in one compiled pass
+            occ = [self._block_discs(discs, radar_xy[(b0 + min(n, b0 + bb) - 1) // 2], float(mids[b0 // bb]),
+                                     float(halves[b0 // bb]) + self._cut_rad, t_ns[(b0 + min(n, b0 + bb) - 1) // 2])
+                   for b0 in blocks]
+            occ_lo = np.concatenate([[0], np.cumsum([len(o) for o in occ])]).astype(np.intp)
+            occ_all = np.ascontiguousarray(np.concatenate(occ), float) if occ_lo[-1] else np.zeros((0, 6))
+            return [kernels.block_pairs(
+                blocks.start // bb, (blocks.stop - 1) // bb + 1, bb, mids, halves, far, far_bearing, near, bearing,
+                slack, far_slack, rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r_lim**2, ghost,
+                no_behind if behind is None else behind, behind is not None, segs_c, occ_all, occ_lo,
+                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))]
 
         # blocks are independent: contiguous runs of them on the threads, joined in block order
-        parts = [p for p in self._map_chunks(lambda run: [block(b0) for b0 in run], range(0, n, bb))
-                 if p is not None]
+        parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
+        self._pairs_hint = sum(len(p[0]) for p in parts) * 5 // 4  # the buffers' first size next turn
         if not parts:
             return Echoes.concat([])
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
-        beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-        d = [np.concatenate([p[2][k] for p in parts]) for k in range(5)]
-        shadow = None
-        if any(p[3] is not None for p in parts):  # x 1.0 where a block had none: exact
-            shadow = np.concatenate([np.ones(len(p[0])) if p[3] is None else p[3] for p in parts])
+        if len(parts) == 1:  # one run: its arrays as they are
+            beam, jj, d = parts[0]
+        else:
+            beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+            d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
 
-        def physics(run):  # element-wise per pair: chunks joined in order give the same bits
+        return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
+
+    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> Echoes:
+        """:func:`.spectra.pair_echoes` of the static pairs (beam, scatterer ``jj``, ``d`` from
+        :func:`.kernels.block_pairs`): compiled arithmetic around numpy's transcendental functions,
+        and the synthesizer's culling of weak echoes done here (element-wise: the same echoes reach it).
+        Element-wise per pair, so runs of pairs on the threads joined in order give the same bits."""
+        from . import kernels  # numba: compiled (cached) at the first call, not at import
+
+        p, cfg = self.params, self.config
+        lam = SPEED_OF_LIGHT_MPS / cfg.f0_hz
+        k_eq = p.pt_g2_w(cfg) * lam**2 / (4.0 * math.pi) ** 3  # received_power_w's constant
+        sin_ref = math.sin(math.radians(p.grazing_ref_deg)) if p.grazing_ref_deg is not None else 1.0
+        rvx, rvy = radar_vxy[:, 0].copy(), radar_vxy[:, 1].copy()
+
+        def physics(run):
             sl = slice(run.start, run.stop)
-            return [pair_echoes(beam[sl], radar_vxy[beam[sl]], *(a[sl] for a in d), sz[jj[sl]], None, rcs[jj[sl]],
-                                phase[jj[sl]], area[jj[sl]], None if shadow is None else shadow[sl],
-                                self.config, self.params)]
+            b, q, dd = beam[sl], jj[sl], d[:, sl]
+            r_h, dz, range_m, radial = kernels.pair_ranges(b, q, dd, sz, cfg.height_m, rvx, rvy)
+            g_az = self._pattern.gain2(np.arctan2(dd[3], dd[2]))
+            e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
+                                                     -8.0 * math.log(2.0)))
+            return [Echoes(*kernels.pair_power(b, q, dd, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
+                                               p.grazing_ref_deg is not None, sin_ref, k_eq,
+                                               10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
+                                               self.synth._cull_w))]
 
         return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
 
@@ -405,19 +424,35 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         def adc(x: np.ndarray) -> np.ndarray:
             return adc_counts(x, noise_w, p.adc_db_per_count, p.adc_zero_db, p.adc_max_count)
 
+    def synthesize(e, draws, n):  # no randomness: on the pipeline's thread with threads > 1
+        up, down = sim.synth.synthesize(e, draws, n)
+        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
+            up = adc(up)
+            down = adc(down) if np.size(down) else down
+        return up, down
+
+    # turn k's synthesis runs on its own thread while this one computes turn k + 1's echoes and
+    # draws; the draws stay on this thread in the one-thread order, so the bits do not depend on it
+    pipe = _pool(1, "radar-sim-pipe") if sim.threads > 1 else None
+    pending = None
     turn = 0
     while True:
         t_ns = beam_times_ns(start, turn, config)
         n = int(np.searchsorted(t_ns, end))  # beams acquired before the end
-        if n == 0:
+        job = None
+        if n:
+            e, draws = sim.synth.draw(sim.echoes(trajectory, t_ns[:n], rng), n, rng)
+            job = (turn, t_ns, n, pipe.submit(synthesize, e, draws, n) if pipe else synthesize(e, draws, n))
+            if pipe is None:
+                pending, job = job, None
+        if pending is not None:
+            k, t_k, n_k, spectra = pending
+            up, down = spectra.result() if pipe else spectra
+            for j in range(n_k):
+                yield int(t_k[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), k, j, up[j], down[j], config)
+        if not n:
             return
-        up, down = sim.turn(trajectory, t_ns[:n], rng)
-        if adc is not None:  # the radar's own output stage (Navtech: 8-bit counts of 0.5 dB)
-            up = adc(up)
-            down = adc(down) if np.size(down) else down
-        for j in range(n):
-            yield int(t_ns[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), turn, j, up[j],
-                                                   down[j], config)
+        pending = job
         turn += 1
 
 

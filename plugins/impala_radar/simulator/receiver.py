@@ -72,6 +72,17 @@ def skirt_density(df_hz, power_w, range_m, l_ref_dbc_hz: float, f_ref_hz: float)
     return power_w * ell * 4.0 * np.sin(math.pi * df * tau_s) ** 2
 
 
+def skirt_echoes(power_w, range_m, ramp_s: float, enbw: float, noise_per_bin_w: float, l_ref_dbc_hz: float,
+                 f_ref_hz: float) -> np.ndarray:
+    """Indices of the echoes whose skirts :func:`phase_noise_skirts` draws: those whose flat skirt
+    level reaches a tenth of the noise per bin (a subset of the echoes in the same order has the
+    same skirts and draws)."""
+    # the flat part of S (df >> 1/tau is never reached here): 4 pi^2 L_ref f_ref^2 tau^2 P
+    tau_s = 2.0 * range_m / 299_792_458.0
+    flat = power_w * 10.0 ** (l_ref_dbc_hz / 10.0) * (2.0 * math.pi * f_ref_hz * tau_s) ** 2
+    return np.nonzero(flat * enbw / ramp_s >= 0.1 * noise_per_bin_w)[0]
+
+
 def phase_noise_skirts(beam, f_hz, power_w, range_m, n_beams: int, bin_hz: float, n_bins: int,
                        hz_per_bin_phys: float, ramp_s: float, enbw: float, noise_per_bin_w: float,
                        l_ref_dbc_hz: float, f_ref_hz: float, rng: np.random.Generator):
@@ -79,10 +90,7 @@ def phase_noise_skirts(beam, f_hz, power_w, range_m, n_beams: int, bin_hz: float
     out = np.zeros((n_beams, n_bins))
     if len(power_w) == 0:
         return out
-    # the flat part of S (df >> 1/tau is never reached here): 4 pi^2 L_ref f_ref^2 tau^2 P
-    tau_s = 2.0 * range_m / 299_792_458.0
-    flat = power_w * 10.0 ** (l_ref_dbc_hz / 10.0) * (2.0 * math.pi * f_ref_hz * tau_s) ** 2
-    sel = np.nonzero(flat * enbw / ramp_s >= 0.1 * noise_per_bin_w)[0]
+    sel = skirt_echoes(power_w, range_m, ramp_s, enbw, noise_per_bin_w, l_ref_dbc_hz, f_ref_hz)
     if sel.size == 0:
         return out
     k = np.arange(n_bins)

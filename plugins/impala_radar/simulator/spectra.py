@@ -48,7 +48,7 @@ Kernel and phasors are evaluated in float32 (SIMD; relative error 1e-7). The err
 resulting power spectrum is below -100 dB relative to the strongest echo (checked against
 direct summation in tests/radar/test_sim_spectra.py), far under the Hann sidelobes and the
 thermal noise. Cost per ramp: 6 kernel values per echo (one compiled spreading loop over a
-whole turn, :mod:`.kernels`, the exponential being numpy's) plus two FFTs per beam, versus
+whole turn, :mod:`.synth_kernels`, the exponential being numpy's) plus two FFTs per beam, versus
 29 bins per echo for a Hann DTFT summed directly in the frequency domain and truncated at
 -60 dB, and N exponentials per echo for time-domain synthesis. The window is applied in the
 time domain, so any window and the exact fold of negative beat frequencies (near, fast
@@ -78,7 +78,7 @@ from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
 from .antenna import AzimuthPattern
 from .clutter import grazing_factor
-from .receiver import phase_noise_skirts
+from .receiver import phase_noise_skirts, skirt_echoes
 
 __all__ = [
     "RadarParams", "Echoes", "Synthesizer", "beat_frequencies_hz", "received_power_w",
@@ -227,6 +227,8 @@ class Echoes:
         if not parts:
             e = np.zeros(0)
             return cls(np.zeros(0, np.int64), e, e, e, e)
+        if len(parts) == 1:  # the part itself (its arrays are not copied)
+            return parts[0]
         return cls(*(np.concatenate([getattr(p, f) for p in parts])
                      for f in ("beam", "range_m", "radial_mps", "power_w", "phase_rad")))
 
@@ -361,26 +363,27 @@ class Synthesizer:
         ok = np.abs(f_hz) < 0.5 * self.fs_hz
         if not ok.all():
             f_hz, amplitude, phase_rad, beam = f_hz[ok], amplitude[ok], phase_rad[ok], beam[ok]
-        from . import kernels  # numba: compiled (cached) at the first call, not at import
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
         m_grid, width = self.n_grid, _KERNEL_WIDTH
-        x = kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
-        row = m_grid + width - 1  # one padded row per beam; wrapped columns folded below
+        x = synth_kernels.grid_positions(np.asarray(f_hz, float), m_grid / self.fs_hz, float(m_grid))  # [0, M)
+        row = m_grid + width - 1  # one padded row per beam; wrapped columns folded in _grid
         # phi(m h - x_i) at the 6 grid points around x_i, in float32 (error 1e-7 << 1e-5)
-        arg, base = kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
+        arg, base = synth_kernels.kernel_arguments(x, np.asarray(beam), row, self._offsets, self._u_scale,
                                               np.float32(_KERNEL_BETA))
-        ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
-        size = n_beams * row
-        phase32 = kernels.wrap_phase32(np.asarray(phase_rad, float))
-        amp32 = amplitude.astype(np.float32)
-        b_re, b_im = kernels.spread(base, ker, amp32 * np.cos(phase32), amp32 * np.sin(phase32), size)
-        padded = (b_re + 1j * b_im).reshape(n_beams, row)
-        o = width // 2 - 1  # padded column c holds grid point (c - o) mod M
-        b = padded[:, o:o + m_grid].copy()
-        b[:, m_grid - o:] += padded[:, :o]
-        b[:, : width - 1 - o] += padded[:, o + m_grid:]
-        z = scipy.fft.ifft(b, axis=1)
+        phase32 = synth_kernels.wrap_phase32(np.asarray(phase_rad, float))
+        z = self._grid(arg, base, phase32, amplitude.astype(np.float32), n_beams)
         return z[:, self._time_index] * self._deapodize
+
+    def _grid(self, arg, base, phase32, amp32, n_beams: int) -> np.ndarray:
+        """The IFFT (n_beams, M) of the spread grid from the kernel's exponents ``arg`` at the grid
+        points from ``base`` on, the phases and amplitudes (float32) of the echoes in the band."""
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
+
+        ker = np.exp(arg, out=arg)  # numpy's exp: the bits of _kernel
+        b = synth_kernels.spread_fold(base, ker, amp32, np.cos(phase32), np.sin(phase32), n_beams, self.n_grid,
+                                _KERNEL_WIDTH // 2 - 1)
+        return scipy.fft.ifft(b, axis=1)
 
     def power_spectrum(self, beat_signal: np.ndarray) -> np.ndarray:
         """Windowed, zero-padded power spectrum (n_beams, n_bins) float32 of real samples."""
@@ -388,34 +391,19 @@ class Synthesizer:
         x = x[:, : self.config.n_bins] * self._scale
         return (0.5 * (x.real**2 + x.imag**2)).astype(np.float32)
 
-    def ramp(self, beam, f_hz, power_w, phase_rad, n_beams: int, rng, range_m=None) -> np.ndarray:
-        """Power spectra of one ramp for ``n_beams`` beams: spread, IFFT, noise, window, FFT,
-        then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
-        s = self.signal(beam, f_hz, np.sqrt(2.0 * power_w), phase_rad, n_beams).real
-        return self._spectrum(s, *self._draws(beam, f_hz, power_w, n_beams, rng, range_m))
-
     def _draws(self, beam, f_hz, power_w, n_beams: int, rng, range_m):
-        """The random parts of a ramp, drawn in :meth:`ramp`'s order: thermal noise samples
-        and phase-noise skirts (None when off)."""
+        """The random parts of a ramp, in this order: thermal noise samples and phase-noise skirts
+        (None when off, or when no echo has any: adding zeros to powers >= 0 changes no bit)."""
         noise = skirts = None
         if self.params.thermal_noise:
             noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
         p = self.params
-        if p.phase_noise_dbc_hz is not None and range_m is not None:
+        if p.phase_noise_dbc_hz is not None and range_m is not None and len(power_w):
             skirts = phase_noise_skirts(
                 beam, f_hz, power_w, range_m, n_beams, self.config.bin_hz, self.config.n_bins,
                 self.config.bin_hz * self.hz_per_nominal_hz, self.ramp_s, self.enbw_bins,
                 self.noise_per_bin_w, p.phase_noise_dbc_hz, p.phase_noise_offset_hz, rng).astype(np.float32)
         return noise, skirts
-
-    def _spectrum(self, s, noise, skirts) -> np.ndarray:
-        """:meth:`ramp` once the echoes' signal ``s`` and the draws are there."""
-        if noise is not None:
-            s = s + noise
-        spec = self.power_spectrum(s)
-        if skirts is not None:
-            spec += skirts
-        return spec
 
     def spectra(self, e: Echoes, n_beams: int, rng) -> tuple[np.ndarray, np.ndarray]:
         """(up, down) power spectra; ``down`` is (n_beams, 0) for a radar without Doppler.
@@ -427,31 +415,78 @@ class Synthesizer:
         f_nominal = 2 f = f_r + 2 f_d of eq. 2), so ``range_of_bin_m`` holds and a radial
         speed V moves the apparent range by V f0 / (dF Fm) (:func:`apparent_range_shift_m`).
         """
+        return self.synthesize(*self.draw(e, n_beams, rng), n_beams, self.pool)
+
+    def draw(self, e: Echoes, n_beams: int, rng) -> tuple[Echoes, list]:
+        """The echoes kept (weak ones culled) and the random draws of :meth:`spectra`, in its
+        order: per ramp (up then down) the thermal noise and the phase-noise skirts. The rest
+        (:meth:`synthesize`) draws nothing, so it may run on another thread, later."""
         if self.params.thermal_noise and len(e.power_w):
             strong = e.power_w >= self._cull_w
             if not strong.all():
                 e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
                            e.power_w[strong], e.phase_rad[strong])
-        # bin k holds range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m)
+        # the skirts only need the echoes strong enough to have some (the same skirts and draws):
+        # found once for both ramps, and their beat frequencies only
+        s = e
+        p = self.params
+        if p.phase_noise_dbc_hz is not None:
+            k = skirt_echoes(e.power_w, e.range_m, self.ramp_s, self.enbw_bins, self.noise_per_bin_w,
+                             p.phase_noise_dbc_hz, p.phase_noise_offset_hz)
+            s = Echoes(e.beam[k], e.range_m[k], e.radial_mps[k], e.power_w[k], e.phase_rad[k])
+        return e, [self._draws(s.beam, self._beat_hz(s, mode), s.power_w, n_beams, rng, s.range_m)
+                   for mode in self._modes()]
+
+    def _modes(self) -> tuple[int, ...]:
+        return (0,) if self.single_ramp else (1, 2)
+
+    def _beat_hz(self, e: Echoes, mode: int) -> np.ndarray:
+        """Beat frequency of each echo in a ramp (``mode`` as :meth:`_prepare`); bin k holds
+        range_offset_m + k range_per_bin_m (RadarConfig.range_of_bin_m)."""
         f_r, f_d = beat_frequencies_hz(e.range_m - self.config.range_offset_m, e.radial_mps, self.config)
-        k = 4.0 * math.pi / self.lambda_m
+        return f_r + 2.0 * f_d if mode == 0 else f_r + f_d if mode == 1 else f_r - f_d
+
+    def synthesize(self, e: Echoes, draws: list, n_beams: int, pool=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`spectra` once :meth:`draw` has culled the echoes and drawn; per ramp, one compiled
+        pass gives each echo its beat frequency, phase and kernel values (:meth:`_prepare`), then
+        the grid, IFFT and spectrum. With a ``pool``, the down ramp runs there beside the up ramp."""
         if self.single_ramp:
-            up = self.ramp(e.beam, f_r + 2.0 * f_d, e.power_w, e.phase_rad + k * e.range_m,
-                           n_beams, rng, e.range_m)
-            return up, np.zeros((n_beams, 0), np.float32)
-        half = 0.5 * self.ramp_s * e.radial_mps
-        f_up, ph_up = f_r + f_d, e.phase_rad + k * (e.range_m - half)
-        f_down, ph_down = f_r - f_d, e.phase_rad + k * (e.range_m + half)
-        if self.pool is None:
-            up = self.ramp(e.beam, f_up, e.power_w, ph_up, n_beams, rng, e.range_m)
-            down = self.ramp(e.beam, f_down, e.power_w, ph_down, n_beams, rng, e.range_m)
-            return up, down
-        # the down ramp on a second thread: its NUFFT (no randomness) from now, its spectrum once this
-        # thread has drawn both ramps' noise in ramp()'s order (a one-worker pool runs them in turn)
-        amp = np.sqrt(2.0 * e.power_w)
-        job = self.pool.submit(self.signal, e.beam, f_down, amp, ph_down, n_beams)
-        draws_up = self._draws(e.beam, f_up, e.power_w, n_beams, rng, e.range_m)
-        draws_down = self._draws(e.beam, f_down, e.power_w, n_beams, rng, e.range_m)
-        down = self.pool.submit(lambda: self._spectrum(job.result().real, *draws_down))
-        up = self._spectrum(self.signal(e.beam, f_up, amp, ph_up, n_beams).real, *draws_up)
-        return up, down.result()
+            return self._ramp(e, 0, n_beams, draws[0]), np.zeros((n_beams, 0), np.float32)
+        if pool is None:
+            return self._ramp(e, 1, n_beams, draws[0]), self._ramp(e, 2, n_beams, draws[1])
+        down = pool.submit(self._ramp, e, 2, n_beams, draws[1])
+        return self._ramp(e, 1, n_beams, draws[0]), down.result()
+
+    def _prepare(self, e: Echoes, mode: int):
+        """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
+        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`)."""
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
+
+        c = self.config
+        m_grid = self.n_grid
+        return synth_kernels.ramp_echoes(
+            np.ascontiguousarray(e.beam), *(np.ascontiguousarray(a, float) for a in (e.range_m, e.radial_mps,
+                                                                                     e.power_w, e.phase_rad)),
+            mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
+            2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
+            m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
+            np.float32(_KERNEL_BETA))
+
+    def _ramp(self, e: Echoes, mode: int, n_beams: int, draws) -> np.ndarray:
+        """Power spectra of one ramp (``mode`` as :meth:`_prepare`) of the echoes ``e`` with its ``draws``:
+        spread, IFFT, noise, window, FFT, then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
+        z = self._grid(*self._prepare(e, mode)[1:], n_beams)
+        return self._spectrum_of_grid(z, *draws)
+
+    def _spectrum_of_grid(self, z, noise, skirts) -> np.ndarray:
+        """The power spectrum (:meth:`power_spectrum`) of the signal ``z[:, time_index] * deapodize`` from
+        :meth:`_grid`'s IFFT plus the ``noise``, then the ``skirts`` added, in compiled passes with numpy's
+        arithmetic (complex times real, noise, window; the bins' powers)."""
+        from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
+
+        empty = np.zeros((0, 0))
+        s = synth_kernels.windowed_samples(z, self._time_index, self._deapodize, empty if noise is None else noise,
+                                     self.window)
+        x = scipy.fft.rfft(s, n=self.n_fft, axis=1)
+        return synth_kernels.bin_powers(x, self.config.n_bins, self._scale,
+                                  np.zeros((0, 0), np.float32) if skirts is None else skirts)
