@@ -129,3 +129,37 @@ def test_local_maxima_are_the_maximum_filters_above_the_threshold():
         got = local_maxima(rel, rows, cols, k0, k1, np.float32(thr))
         assert len(want[0]) > 0
         assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+
+
+def _associate_kdtree(pa, pb, ramp_a, ramp_b, gate):
+    """Mutual nearest neighbours with scipy's cKDTree: two queries per ramp."""
+    from scipy.spatial import cKDTree
+
+    ia_all, ib_all = [], []
+    for sign in (1.0, -1.0):
+        ma, mb = np.flatnonzero(ramp_a == sign), np.flatnonzero(ramp_b == sign)
+        if len(ma) == 0 or len(mb) == 0:
+            continue
+        da, jb = cKDTree(pb[mb]).query(pa[ma], distance_upper_bound=gate)
+        ok = np.isfinite(da)
+        ia, ib = ma[ok], mb[jb[ok]]
+        _, ja = cKDTree(pa[ma]).query(pb[ib])
+        mutual = ma[ja] == ia
+        ia_all.append(ia[mutual])
+        ib_all.append(ib[mutual])
+    return np.concatenate(ia_all), np.concatenate(ib_all)
+
+
+@pytest.mark.parametrize("seed,gate,falling", [(1, 1.0, True), (2, 0.25, True), (3, 3.0, False)])
+def test_mutual_nearest_pairs_are_the_kdtrees(seed, gate, falling):
+    from impala_slam.odometry._jit import mutual_nearest
+
+    rng = np.random.default_rng(seed)
+    pa = rng.uniform(-80.0, 80.0, (300, 2))
+    pb = np.concatenate([pa[:200] + rng.normal(0.0, 0.3, (200, 2)), rng.uniform(-80.0, 80.0, (120, 2))])
+    ramp_a = np.where(rng.random(300) < 0.5, 1.0, -1.0) if falling else np.ones(300)
+    ramp_b = np.concatenate([ramp_a[:200], np.where(rng.random(120) < 0.5, 1.0, -1.0) if falling else np.ones(120)])
+    got = mutual_nearest(pa, pb, ramp_a, ramp_b, gate)
+    want = _associate_kdtree(pa, pb, ramp_a, ramp_b, gate)
+    assert len(want[0]) > 20
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])

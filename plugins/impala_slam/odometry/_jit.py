@@ -1,6 +1,6 @@
 """The odometry's compiled loops (numba, ``cache=True``; imported at their first call, never with
-the plugin): the echoes' row medians and local maxima, the search's coincidence count and the
-map's binning. Each gives the same
+the plugin): the echoes' row medians and local maxima, their association, the search's
+coincidence count and the map's binning. Each gives the same
 bits as the numpy formulation it replaces (tests/slam/test_distortion_jit.py compares them)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["coincidences", "local_maxima", "map_cells", "row_medians", "warm_up"]
+__all__ = ["coincidences", "local_maxima", "map_cells", "mutual_nearest", "row_medians", "warm_up"]
 
 _OFF = 1 << 20  # cell indices offset so that the keys' fields stay positive
 _MIX = -7046029254386353131  # 0x9E3779B97F4A7C15 as an int64 (Fibonacci hashing)
@@ -238,6 +238,51 @@ def local_maxima(rel, n_rows, n_cols, k0, k1, threshold):  # pragma: no cover - 
     return rows[:found], cols[:found]
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _nearest(x, y, q, order, xs, ramp, same, reach):  # pragma: no cover - compiled
+    """Index of the point of q (n, 2) with ramp ``same`` nearest (x, y), the lowest of equals, and its
+    squared distance ((dx^2 + dy^2), as scipy's cKDTree sums it), among those within ``reach`` in
+    x (``order`` sorts q by x, ``xs`` its sorted x): -1 and inf when there is none."""
+    best, d2 = -1, np.inf
+    k = np.searchsorted(xs, x - reach)
+    while k < xs.shape[0] and xs[k] <= x + reach:
+        j = order[k]
+        k += 1
+        if ramp[j] == same:
+            dx, dy = x - q[j, 0], y - q[j, 1]
+            d = dx * dx + dy * dy
+            if d < d2 or (d == d2 and j < best):
+                best, d2 = j, d
+    return best, d2
+
+
+@numba.njit(cache=True, nogil=True)
+def mutual_nearest(pa, pb, ramp_a, ramp_b, gate):  # pragma: no cover - compiled
+    """Pairs (i, j): pb[j] is pa[i]'s nearest point of the same ramp, nearer than ``gate``, and pa[i]
+    is pb[j]'s nearest; rising ramp first, each by increasing i: what two cKDTree queries per ramp
+    give (its distances, its strict bound). Each side sorted by x instead of a tree: only the
+    points within the gate in x are looked at (any nearer point is among them)."""
+    ia = np.empty(pa.shape[0], np.int64)
+    ib = np.empty_like(ia)
+    g2 = gate ** 2
+    reach = gate * (1.0 + 1e-9) + 1e-9  # the strip in x, a little wider than the gate
+    order_a, order_b = np.argsort(pa[:, 0]), np.argsort(pb[:, 0])
+    xs_a, xs_b = pa[order_a, 0], pb[order_b, 0]
+    found = 0
+    for sign in (1.0, -1.0):
+        for i in range(pa.shape[0]):
+            if ramp_a[i] != sign:
+                continue
+            j, d2 = _nearest(pa[i, 0], pa[i, 1], pb, order_b, xs_b, ramp_b, sign, reach)
+            if j < 0 or not d2 < g2:
+                continue
+            back, _ = _nearest(pb[j, 0], pb[j, 1], pa, order_a, xs_a, ramp_a, sign, reach)
+            if back == i:
+                ia[found], ib[found] = i, j
+                found += 1
+    return ia[:found], ib[:found]
+
+
 def warm_up() -> None:
     """Each loop called once on tiny inputs: numba's import and its cache loaded (compiled on the
     first use on a machine), so that the first turns do not pay it."""
@@ -246,6 +291,7 @@ def warm_up() -> None:
     coincidences(t, t, t, t, r, t, t, t, t, r, np.zeros(1), 1.0, np.zeros((1, 1), np.int64))
     row_medians(np.zeros((1, 2), np.float32), np.zeros(1, np.float32))
     local_maxima(np.ones((3, 3), np.float32), 3, 3, 0, 3, np.float32(0.0))
+    mutual_nearest(np.zeros((1, 2)), np.zeros((1, 2)), np.ones(1), np.ones(1), 1.0)
     one = np.ones(1)
     map_cells(one, one, one, one, one, np.ones((1, 1), np.float32), np.zeros(1, np.int64), 0.5)
     from .fit import fit_pairs

@@ -28,7 +28,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from impala_msgs import RadarConfig
 
@@ -205,24 +204,13 @@ def _subset(e: Echoes, idx: np.ndarray) -> Echoes:
 def associate(ea: Echoes, eb: Echoes, v: float, w: float, t_ref: float, beta: float,
               gate_m: float, accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Mutual nearest neighbours (same ramp) between the two turns' echoes within ``gate_m``."""
-    ia_all, ib_all = [], []
+    """Mutual nearest neighbours (same ramp) between the two turns' echoes within ``gate_m``
+    (compiled: :func:`~._jit.mutual_nearest`)."""
+    from ._jit import mutual_nearest  # here: numba is imported at the first turn, not with the plugin
+
     pa = echo_points(ea, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
     pb = echo_points(eb, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
-    for sign in (1.0, -1.0):
-        ma, mb = np.flatnonzero(ea.ramp == sign), np.flatnonzero(eb.ramp == sign)
-        if len(ma) == 0 or len(mb) == 0:
-            continue
-        da, jb = cKDTree(pb[mb]).query(pa[ma], distance_upper_bound=gate_m)
-        ok = np.isfinite(da)
-        ia, ib = ma[ok], mb[jb[ok]]
-        _, ja = cKDTree(pa[ma]).query(pb[ib])
-        mutual = ma[ja] == ia
-        ia_all.append(ia[mutual])
-        ib_all.append(ib[mutual])
-    if not ia_all:
-        return np.zeros(0, int), np.zeros(0, int)
-    return np.concatenate(ia_all), np.concatenate(ib_all)
+    return mutual_nearest(pa, pb, np.ascontiguousarray(ea.ramp, float), np.ascontiguousarray(eb.ramp, float), gate_m)
 
 
 def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: float, *, beta_s: float = 0.0,
