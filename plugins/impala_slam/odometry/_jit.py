@@ -212,17 +212,21 @@ def local_maxima(rel, n_rows, n_cols, k0, k1, threshold):  # pragma: no cover - 
     ``np.nonzero((rel == maximum_filter(rel, (n_rows, n_cols), mode=("wrap", "nearest"))) &
     (rel > threshold))`` gives there (window offsets -(n // 2) .. n - 1 - n // 2, rows wrapping
     around the turn, columns repeating their edge). Only the cells above the threshold look at their
-    window (a few in a hundred), and stop at the first larger neighbour."""
+    window (2 to 20 in a hundred), their 4 neighbours first, and stop at the first larger value."""
     n, m = rel.shape
     top, left = n_rows // 2, n_cols // 2
     rows = np.empty(n * max(k1 - k0, 0), np.int64)
     cols = np.empty_like(rows)
     found = 0
+    near = n_rows >= 3 and n_cols >= 3 and k0 >= 1 and k1 <= m - 1  # the window holds the 4 neighbours
     for b in range(n):
+        up, down = (b - 1) % n, (b + 1) % n
         for k in range(k0, k1):
             v = rel[b, k]
             if not v > threshold:
                 continue
+            if near and not (rel[b, k - 1] <= v and rel[b, k + 1] <= v and rel[up, k] <= v and rel[down, k] <= v):
+                continue  # most cells above the threshold are not the largest of their 4 neighbours
             peak = True
             for db in range(-top, n_rows - top):
                 r = (b + db) % n

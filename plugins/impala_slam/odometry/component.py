@@ -187,6 +187,7 @@ class DistortionOdometry(Component):
             "partial_turns": self.partial_turns,
             "dropped_turns": self.dropped_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
+            "first_registration_ms": round(1e3 * (core.first_s or 0.0), 1),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
             **{f"{k}_ms_per_turn": round(1e3 * v / core.turns, 2) for k, v in core.split_s.items()},
         }
