@@ -10,7 +10,8 @@ Printed per seed: speed and yaw-rate errors (mean, std; truth over 1 s windows c
 each estimate), final x / y / rotation errors (first pose aligned), ATE after rigid alignment,
 relative error over 100-800 m segments, the dead reckoning's ATE, and ms per turn of the
 odometry on one core (CPU time of its own ``step``, split into echoes / estimate / search, the map
-excluded and printed apart). Then the
+excluded and printed apart; and the first registration's, a search of the whole speed and
+yaw-rate range). Then the
 imported Oxford sample through graphs/odometry_navtech.yaml, with and without the
 range-Doppler compensation; then the RADIATE Edinburgh head (real, 400 turns, GPS truth: ATE of
 positions after a rigid fit, whole head, first and last 200 turns). The parameters were tuned on
@@ -91,7 +92,7 @@ def _split(odo: dict) -> str:
     """The per-stage split of the odometry's CPU time per turn, as the component counts it."""
     return (f"{odo.get('odo_ms_per_turn')} ms per turn = echoes {odo.get('echoes_ms_per_turn')} + estimate "
             f"{odo.get('estimate_ms_per_turn')} + search {odo.get('search_ms_per_turn')} + filter/clock/rest "
-            f"(+ map {odo.get('map_ms_per_turn')} ms)")
+            f"(+ map {odo.get('map_ms_per_turn')} ms); first registration {odo.get('first_registration_ms')} ms")
 
 
 def bench_radiate(mission_path: str | Path, turns: int | None = None) -> dict:
@@ -109,6 +110,7 @@ def bench_radiate(mission_path: str | Path, turns: int | None = None) -> dict:
             "odometry_radiate_echoes_ms_per_turn": odo.get("echoes_ms_per_turn"),
             "odometry_radiate_estimate_ms_per_turn": odo.get("estimate_ms_per_turn"),
             "odometry_radiate_search_ms_per_turn": odo.get("search_ms_per_turn"),
+            "odometry_radiate_first_registration_ms": odo.get("first_registration_ms"),
             "odometry_radiate_ate_m": m.get("ate_rmse_m"), "odometry_radiate_turns": odo.get("turns"),
             "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1)}
 
@@ -132,6 +134,7 @@ def main() -> int:
                            capture_output=True)
             m, odo = _run("odometry.yaml", mission, tmp / f"out-{seed}")
             row = {k: m.get(k) for k in KEYS} | {"odo_ms_per_turn": odo.get("odo_ms_per_turn"),
+                                                 "first_registration_ms": odo.get("first_registration_ms"),
                                                  "map_ms_per_turn": odo.get("map_ms_per_turn"),
                                                  "degraded_turns": odo.get("degraded_turns"),
                                                  "wide_searches": odo.get("wide_searches")}
@@ -184,7 +187,8 @@ def main() -> int:
                       f"{rad['odometry_radiate_echoes_ms_per_turn']} + estimate "
                       f"{rad['odometry_radiate_estimate_ms_per_turn']} + search "
                       f"{rad['odometry_radiate_search_ms_per_turn']} (+ map "
-                      f"{rad['odometry_radiate_map_ms_per_turn']} ms)")
+                      f"{rad['odometry_radiate_map_ms_per_turn']} ms); first registration "
+                      f"{rad['odometry_radiate_first_registration_ms']} ms")
         else:
             print(f"RADIATE head not found at {args.radiate}: skipped")
 
@@ -192,7 +196,7 @@ def main() -> int:
         vals = [r[k] for r in rows if r.get(k) is not None]
         return round(sum(vals) / len(vals), 4) if vals else None
 
-    out = {k: mean(k) for k in ("odo_ms_per_turn", "speed_err_mean_mps", "speed_err_std_mps",
+    out = {k: mean(k) for k in ("odo_ms_per_turn", "first_registration_ms", "speed_err_mean_mps", "speed_err_std_mps",
                                  "yaw_rate_err_mean_dps", "rel_err_pct", "ate_rmse_m")}
     o = ox.get("")
     out["oxford_speed_err_mps"] = round(abs(o["speed_err_mean_mps"]), 4) if o else None

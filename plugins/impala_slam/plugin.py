@@ -11,7 +11,7 @@ from typing import Any
 from impala_flow.plugins import hookimpl, require
 
 #: the libraries of this plugin's extra (pip install 'impala-flow[slam]'), checked before any hook runs
-REQUIRES = ("scipy", "cv2", "filterpy", "gtsam")
+REQUIRES = ("scipy", "cv2", "filterpy", "gtsam", "numba")
 
 
 @hookimpl

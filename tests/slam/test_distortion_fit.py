@@ -1,6 +1,7 @@
-"""The odometry's robust fit (impala_slam.odometry.fit.trf_cauchy) against the library it writes out:
-scipy.optimize.least_squares(method="trf", loss="cauchy") gives the same bits, on a curve fit with
-outliers and on the two-turn echo residuals of the odometry (echoes placed by the same code here)."""
+"""The odometry's robust fit (impala_slam.odometry.fit, compiled) against the library it writes out:
+scipy.optimize.least_squares(method="trf", loss="cauchy") on residuals built here from the public
+point model (echo_points) reaches the same solution with the same number of evaluations, from a
+moving start, a standing one and with the yaw acceleration estimated beside its prior."""
 
 from __future__ import annotations
 
@@ -8,33 +9,10 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from impala_slam.odometry.distortion import Echoes, _residuals_rows
-from impala_slam.odometry.fit import trf_cauchy
+from impala_slam.odometry.distortion import Echoes, _packed, echo_points
+from impala_slam.odometry.fit import fit_pairs, pair_residuals
 
-
-def _same(fit, ref):
-    assert np.array_equal(fit.x, ref.x)
-    assert np.array_equal(fit.fun, ref.fun)
-    assert np.array_equal(fit.jac, ref.jac)
-
-
-@pytest.mark.parametrize("x0", [[1.0, -0.5, 0.2], [0.0, 0.0, 0.0], [1e-15, 0.0, 3.0]])
-def test_curve_with_outliers_same_bits_as_scipy(x0):
-    rng = np.random.default_rng(3)
-    t = np.linspace(0.0, 4.0, 120)
-    y = 2.0 * np.exp(-0.7 * t) + 0.3 * np.sin(3.0 * t) + rng.normal(0.0, 0.02, t.size)
-    y[::9] += rng.uniform(1.0, 3.0, y[::9].size)  # outliers
-
-    def one(p):
-        return p[0] * np.exp(-p[1] * t) + p[2] * np.sin(3.0 * t) - y
-
-    def rows(ps):
-        return np.stack([one(p) for p in ps])
-
-    ref = least_squares(one, x0, loss="cauchy", f_scale=0.1, method="trf", x_scale=[1.0, 0.1, 0.5])
-    fit = trf_cauchy(rows, x0, 0.1, [1.0, 0.1, 0.5])
-    _same(fit, ref)
-    assert abs(fit.x[0] - 2.0) < 0.05 and abs(fit.x[1] - 0.7) < 0.05  # the outliers are ignored
+T_REF, BETA, SR, SPHI, ACC = 1.0, 0.05, 0.2, 0.005, 0.4
 
 
 def _echoes(rng, n, t0):
@@ -42,35 +20,70 @@ def _echoes(rng, n, t0):
                   np.where(rng.random(n) < 0.5, 1.0, -1.0), rng.uniform(12.0, 30.0, n))
 
 
+def _gaps(p, a, b, yacc):
+    """The pairs' gaps along b's radial and tangential axes, over their std, from echo_points."""
+    d = echo_points(a, p[0], p[1], T_REF, BETA, ACC, yacc) - echo_points(b, p[0], p[1], T_REF, BETA, ACC, yacc)
+    dt = b.t_s - T_REF
+    ang = (p[1] + 0.5 * yacc * dt) * dt + b.azimuth_rad
+    radial = (d[:, 0] * np.cos(ang) + d[:, 1] * np.sin(ang)) / SR
+    tangential = (-d[:, 0] * np.sin(ang) + d[:, 1] * np.cos(ang)) / np.hypot(SR, b.range_m * SPHI)
+    return np.concatenate([radial, tangential])
+
+
+def _pairs(seed, n=150):
+    rng = np.random.default_rng(seed)
+    a, b = _echoes(rng, n, 0.0), _echoes(rng, n, 1.0)
+    b.range_m = a.range_m + rng.normal(0.0, 0.3, n)  # pairs about the same place
+    b.range_m[::11] += rng.uniform(5.0, 20.0, b.range_m[::11].size)  # wrong pairs: the loss ignores them
+    st = np.hypot(SR, b.range_m * SPHI)
+    return a, b, _packed(a, T_REF, BETA, ACC), _packed(b, T_REF, BETA, ACC), st
+
+
+def test_pair_residuals_are_the_gaps_of_the_placed_echoes():
+    a, b, pa, pb, st = _pairs(8, 80)
+    for p in ([6.0, 0.05], [-1.0, -0.3], [0.0, 0.0], [3.0, 1e-8]):
+        out = np.empty(160)
+        pair_residuals(np.array(p), pa, pb, SR, st, 0.1, 1.0, out)
+        np.testing.assert_allclose(out, _gaps(p, a, b, 0.1), rtol=1e-9, atol=1e-9)
+    out = np.empty(161)  # (v, w, yaw acceleration): the prior's residual last
+    pair_residuals(np.array([6.0, 0.05, 0.3]), pa, pb, SR, st, 0.1, 0.2, out)
+    np.testing.assert_allclose(out[:-1], _gaps([6.0, 0.05], a, b, 0.3), rtol=1e-9, atol=1e-9)
+    assert out[-1] == pytest.approx((0.3 - 0.1) / 0.2)
+
+
 @pytest.mark.parametrize("v0,w0,yacc", [(8.0, 0.1, 0.0), (0.0, 1e-16, 0.0), (5.0, -0.2, 0.3)])
-def test_echo_residuals_same_bits_as_scipy(v0, w0, yacc):
-    rng = np.random.default_rng(5)
-    a, b = _echoes(rng, 150, 0.0), _echoes(rng, 150, 1.0)
-    b.range_m = a.range_m + rng.normal(0.0, 0.3, 150)  # pairs about the same place
-    args = (a, b, 1.0, 0.05, 0.2, 0.005, 0.4, yacc)
+def test_fit_reaches_scipys_solution(v0, w0, yacc):
+    a, b, pa, pb, st = _pairs(5)
+    ref = least_squares(lambda p: _gaps(p, a, b, yacc), [v0, w0], loss="cauchy", f_scale=2.0, method="trf",
+                        x_scale=[1.0, 0.05])
+    x, fun, jac, nfev = fit_pairs(np.array([v0, w0]), pa, pb, SR, st, yacc, 1.0, 2.0, np.array([1.0, 0.05]))
+    assert nfev == ref.nfev
+    # the same iterations, rounded apart (numpy's and numba's trigonometry): the same solution within
+    # what the stopping tolerances (xtol = ftol = 1e-8) leave on these random pairs' flat cost
+    np.testing.assert_allclose(x, ref.x, rtol=1e-7, atol=1e-6)
+    np.testing.assert_allclose(fun, ref.fun, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(jac, ref.jac, rtol=1e-5, atol=1e-5)  # forward differences of each
 
-    def one(p):
-        return _residuals_rows(np.asarray(p)[None, :], *args)[0]
 
-    ref = least_squares(one, [v0, w0], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05])
-    fit = trf_cauchy(lambda ps: _residuals_rows(ps, *args), [v0, w0], 2.0, [1.0, 0.05])
-    _same(fit, ref)
+def test_fit_with_the_yaw_acceleration_and_its_prior():
+    a, b, pa, pb, st = _pairs(6)
+
+    def gaps(p):
+        return np.append(_gaps(p[:2], a, b, p[2]), (p[2] - 0.1) / 0.2)
+
+    ref = least_squares(gaps, [4.0, 0.05, 0.1], loss="cauchy", f_scale=2.0, method="trf", x_scale=[1.0, 0.05, 0.1])
+    x, fun, _, nfev = fit_pairs(np.array([4.0, 0.05, 0.1]), pa, pb, SR, st, 0.1, 0.2, 2.0, np.array([1.0, 0.05, 0.1]))
+    assert nfev == ref.nfev
+    np.testing.assert_allclose(x, ref.x, rtol=1e-7, atol=1e-6)
+    np.testing.assert_allclose(fun, ref.fun, rtol=0, atol=1e-6)
 
 
-def test_residual_rows_are_the_gaps_of_the_placed_echoes_row_by_row():
-    """Several parameter sets at once give each set's residuals alone, bit for bit; and they are the
-    gaps between the pairs' placed points (echo_points) along b's radial and tangential axes."""
-    from impala_slam.odometry.distortion import echo_points
-
-    rng = np.random.default_rng(8)
-    a, b = _echoes(rng, 80, 0.0), _echoes(rng, 80, 1.0)
-    ps = np.array([[6.0, 0.05], [6.0 + 1e-8, 0.05], [-1.0, -0.3], [0.0, 0.0]])
-    rows = _residuals_rows(ps, a, b, 1.0, 0.05, 0.2, 0.005, 0.4, 0.1)
-    for p, row in zip(ps, rows, strict=True):
-        assert np.array_equal(row, _residuals_rows(p[None, :], a, b, 1.0, 0.05, 0.2, 0.005, 0.4, 0.1)[0])
-        d = echo_points(a, *p, 1.0, 0.05, 0.4, 0.1) - echo_points(b, *p, 1.0, 0.05, 0.4, 0.1)
-        dt = b.t_s - 1.0
-        ang = (p[1] + 0.05 * dt) * dt + b.azimuth_rad
-        radial = (d[:, 0] * np.cos(ang) + d[:, 1] * np.sin(ang)) / 0.2
-        tangential = (-d[:, 0] * np.sin(ang) + d[:, 1] * np.cos(ang)) / np.hypot(0.2, b.range_m * 0.005)
-        np.testing.assert_allclose(row, np.concatenate([radial, tangential]), rtol=1e-9, atol=1e-9)
+def test_pairs_at_rest_keep_the_estimate_at_rest():
+    """Two turns of the same echoes (a standing vehicle) from (0, 0): the fit stays there."""
+    rng = np.random.default_rng(9)
+    a = _echoes(rng, 200, 0.0)
+    b = Echoes(a.t_s + 1.0, a.azimuth_rad.copy(), a.range_m + rng.normal(0.0, 0.05, 200), a.ramp.copy(), a.snr_db)
+    st = np.hypot(SR, b.range_m * SPHI)
+    x, _, _, _ = fit_pairs(np.array([0.0, 0.0]), _packed(a, T_REF, BETA, 0.0), _packed(b, T_REF, BETA, 0.0), SR, st,
+                           0.0, 1.0, 2.0, np.array([1.0, 0.05]))
+    assert abs(x[0]) < 0.01 and abs(x[1]) < 1e-3

@@ -82,6 +82,10 @@ class DistortionOdometry(Component):
         self.partial_turns = 0  # turns short of beams, used
         self.dropped_turns = 0  # turns with fewer than min_turn_fraction of their beams, not used
         self.map_s = 0.0
+        # the compiled loops (numba, from its cache) loaded now: the first turns do not wait for them
+        from ._jit import warm_up
+
+        warm_up()
 
     def process(self, t: int) -> None:
         if self.trigger == "map_timer":
@@ -149,22 +153,18 @@ class DistortionOdometry(Component):
             return
         vm, wm = 0.5 * (prev.v_mps + r.v_mps), 0.5 * (prev.w_radps + r.w_radps)
         poses = self.core.beam_poses(t_s, prev.t_s, prev.pose, vm, wm)
-        db = np.maximum(rel_db, 0.0)  # the odometry's echo extraction computed it (dB above the beam medians)
+        from ._jit import map_cells
+
         k = np.arange(rel_db.shape[1])
         rng = np.asarray(config.range_of_bin_m(k), float)
-        sel = (rng >= self.range_min_m) & (rng <= self.map_range_m)
-        rng, db = rng[sel], db[:, sel]
+        cols = np.flatnonzero((rng >= self.range_min_m) & (rng <= self.map_range_m))
         a = poses[:, 2:3] + az[:, None]
-        x = poses[:, 0:1] + rng[None, :] * np.cos(a)
-        y = poses[:, 1:2] + rng[None, :] * np.sin(a)
+        # dB above the beam medians (the odometry's echo extraction computed them), at least 0, summed per cell
+        ix0, iy0, total, count = map_cells(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]),
+                                           np.cos(a).ravel(), np.sin(a).ravel(), rng[cols], rel_db, cols,
+                                           self._map.cell_m)
         tm = self._map
-        ix = np.floor(x / tm.cell_m + 0.5).astype(np.int64).ravel()
-        iy = np.floor(y / tm.cell_m + 0.5).astype(np.int64).ravel()
-        ix0, iy0 = int(ix.min()), int(iy.min())
-        nx, ny = int(ix.max()) - ix0 + 1, int(iy.max()) - iy0 + 1
-        flat = (iy - iy0) * nx + (ix - ix0)
-        s = np.bincount(flat, weights=db.ravel(), minlength=nx * ny).reshape(ny, nx).astype(np.float32)
-        n = np.bincount(flat, minlength=nx * ny).reshape(ny, nx).astype(np.float32)
+        s, n = total.astype(np.float32), count.astype(np.float32)
         tm.add(ix0, iy0, s, n)
         tm.images += 1
         self.map_s += time.thread_time() - t0
@@ -187,6 +187,7 @@ class DistortionOdometry(Component):
             "partial_turns": self.partial_turns,
             "dropped_turns": self.dropped_turns,
             "odo_ms_per_turn": round(1e3 * core.seconds / core.turns, 2),
+            "first_registration_ms": round(1e3 * (core.first_s or 0.0), 1),
             "map_ms_per_turn": round(1e3 * self.map_s / core.turns, 2),
             **{f"{k}_ms_per_turn": round(1e3 * v / core.turns, 2) for k, v in core.split_s.items()},
         }

@@ -107,6 +107,7 @@ class DistortionCore:
         self.recent_scores: list[int] = []
         self.turns = self.degraded = self.searches = self.wide_searches = self.resets = 0
         self.seconds = 0.0  # CPU time of step (this thread's)
+        self.first_s: float | None = None  # ... of the first step with a result
         self.split_s = {"echoes": 0.0, "estimate": 0.0, "search": 0.0}  # CPU time of its stages
         # turn clock: a turn's time stamp may come late (a logger that stalls, then catches up)
         self.clock_offset_s = 0.0  # stamp minus turn-clock time of the newest turn
@@ -143,10 +144,15 @@ class DistortionCore:
              config) -> TurnResult | None:
         """One complete turn (beam times in s from a fixed origin). None for the first turn."""
         t0 = time.thread_time()
+        r = None
         try:
-            return self._step(t_s, azimuth_rad, up, down, config)
+            r = self._step(t_s, azimuth_rad, up, down, config)
+            return r
         finally:
-            self.seconds += time.thread_time() - t0
+            dt = time.thread_time() - t0
+            self.seconds += dt
+            if r is not None and self.first_s is None:
+                self.first_s = dt  # the first registration: a search of the whole speed and yaw-rate range
 
     def _period(self, config) -> float:
         """Rotation period: the median of the recent one-turn stamp intervals (the configured

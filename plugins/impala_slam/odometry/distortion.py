@@ -27,13 +27,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
-from scipy.spatial import cKDTree
 
 from impala_msgs import RadarConfig
-
-from .fit import trf_cauchy
 
 __all__ = ["Echoes", "EchoParams", "VelocityEstimate", "arc_poses", "doppler_beta_s", "echo_points",
            "extract_echoes", "estimate_velocity", "search_velocity", "strongest"]
@@ -78,17 +74,6 @@ class Echoes:
                         ("t_s", "azimuth_rad", "range_m", "ramp", "snr_db")))
 
 
-def _maximum_filter(img: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
-    """scipy.ndimage.maximum_filter(img, (n_rows, n_cols), mode=("wrap", "nearest")) of a float32
-    image with cv2.dilate (a fifth of the time): rows wrap around the turn (padded here), columns
-    repeat their edge; the same window offsets as scipy's, -(k // 2) .. k - 1 - k // 2."""
-    top, bottom = n_rows // 2, n_rows - 1 - n_rows // 2
-    pad = np.concatenate([img[len(img) - top:], img, img[:bottom]]) if n_rows > 1 else img
-    out = cv2.dilate(pad, np.ones((n_rows, n_cols), np.uint8), anchor=(n_cols // 2, n_rows // 2),
-                     borderType=cv2.BORDER_REPLICATE)
-    return out[top:top + len(img)]
-
-
 def _peaks(rel: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int) -> tuple[np.ndarray, ...]:
     """Local maxima of a (beams sorted by azimuth, bins) image in dB above the beam medians, with
     sub-bin and sub-beam positions (parabola through the peak and its neighbours)."""
@@ -96,11 +81,11 @@ def _peaks(rel: np.ndarray, p: EchoParams, config: RadarConfig, n_win_beams: int
     k1 = int(min(rel.shape[1] - 1, math.floor(config.bin_of_range(p.range_max_m))))
     if k1 <= k0:
         return (np.zeros(0, int),) * 2 + (np.zeros(0),) * 3
-    mx = _maximum_filter(rel, n_win_beams, p.window_bins)
-    ok = (rel == mx) & (rel > p.threshold_db)
-    ok[:, :k0] = False
-    ok[:, k1:] = False
-    bi, ki = np.nonzero(ok)
+    from ._jit import local_maxima  # here: numba is imported at the first turn, not with the plugin
+
+    # the maxima of their window (scipy.ndimage.maximum_filter's, rows wrapping round the turn)
+    # above the threshold, looked for only where the threshold is passed
+    bi, ki = local_maxima(rel, n_win_beams, p.window_bins, k0, k1, rel.dtype.type(p.threshold_db))
     val = rel[bi, ki]
     if len(val) > p.max_echoes:
         keep = np.argpartition(-val, p.max_echoes - 1)[: p.max_echoes]
@@ -126,6 +111,8 @@ def extract_echoes(t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, dow
     ``t_s``/``azimuth_rad`` per beam, in any order and either rotation sense; ``up``/``down``
     (beams, bins) linear power (``down`` None or empty for a power-only radar). ``up_rel_db``, a
     list, receives the ``up`` image in dB above its beam medians (beams in their given order)."""
+    from ._jit import row_medians  # here: numba is imported at the first turn, not with the plugin
+
     order = np.argsort(np.mod(azimuth_rad, 2.0 * np.pi), kind="stable")
     t_s, az = np.asarray(t_s, float)[order], np.unwrap(np.asarray(azimuth_rad, float)[order])
     n = len(order)
@@ -136,7 +123,9 @@ def extract_echoes(t_s: np.ndarray, azimuth_rad: np.ndarray, up: np.ndarray, dow
     for img, sign in ramps:
         img = np.asarray(img, np.float32)[order]
         db = 10.0 * np.log10(np.maximum(img, np.float32(1e-30)))
-        rel = db - np.median(db, axis=1, keepdims=True)
+        med = np.empty(len(db), np.float32)
+        row_medians(db, med)  # np.median(db, axis=1) bit for bit, a third of the time
+        rel = db - med[:, None]
         if sign > 0 and up_rel_db is not None:  # beams back in their given order
             up_rel_db.append(rel[np.argsort(order, kind="stable")])
         bi, ki, dk, dbeam, val = _peaks(rel, params, config, min(n_win, n))
@@ -200,56 +189,12 @@ class VelocityEstimate:
     yaw_accel_radps2: float = 0.0  # the motion model's yaw acceleration (estimated or given)
 
 
-class _Placed:
-    """What placing a turn's echoes for any (v, w) needs that does not depend on them, computed
-    once per association (the same operations as :func:`echo_points`, so the same bits)."""
-
-    def __init__(self, e: Echoes, t_ref: float, beta: float, acc: float):
-        self.dt = e.t_s - t_ref
-        self.d_acc = 0.5 * acc * self.dt * self.dt
-        self.dop = e.ramp * beta  # apparent range per m/s of speed, times cos(azimuth)
-        self.cos_az = np.cos(e.azimuth_rad)
-        self.azimuth_rad = e.azimuth_rad
-        self.range_m = e.range_m
-
-    def rows(self, v: np.ndarray, w: np.ndarray, yacc) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """X, Y and the heading th + azimuth of every echo for k parameter sets (v, w, yacc: (k, 1)
-        columns or numbers), (k, n) each."""
-        dt = self.dt
-        th = (w + 0.5 * yacc * dt) * dt
-        _, _, sinc, cosc = _arc_factors(th)
-        d = v * dt + self.d_acc
-        r = self.range_m + self.dop * v * self.cos_az
-        a = th + self.azimuth_rad
-        return d * sinc + r * np.cos(a), d * cosc + r * np.sin(a), a
-
-
-class PairResiduals:
-    """Residuals of associated pairs (one echo of turn ``a``, one of turn ``b``) for rows of
-    parameters: the gaps between the pairs' placed echoes along the radial, then the tangential
-    axis of each pair's second echo, scaled by their standard deviations."""
-
-    def __init__(self, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float, acc: float):
-        self.a, self.b = _Placed(ea, t_ref, beta, acc), _Placed(eb, t_ref, beta, acc)
-        self.sr = sr
-        self.st = np.sqrt(sr * sr + (eb.range_m * sphi) ** 2)
-
-    def __call__(self, params: np.ndarray, yacc) -> np.ndarray:
-        """(k, 2 n) for the rows (v, w) of ``params`` (k, 2); ``yacc`` a number or a (k, 1) column."""
-        v, w = params[:, 0:1], params[:, 1:2]
-        xa, ya, _ = self.a.rows(v, w, yacc)
-        xb, yb, ang = self.b.rows(v, w, yacc)
-        dx, dy = xa - xb, ya - yb
-        c, s = np.cos(ang), np.sin(ang)
-        er = (dx * c + dy * s) / self.sr
-        et = (-dx * s + dy * c) / self.st
-        return np.concatenate([er, et], axis=1)
-
-
-def _residuals_rows(params: np.ndarray, ea: Echoes, eb: Echoes, t_ref: float, beta: float, sr: float, sphi: float,
-                    acc: float, yacc) -> np.ndarray:
-    """:class:`PairResiduals` of the rows of ``params`` in one call."""
-    return PairResiduals(ea, eb, t_ref, beta, sr, sphi, acc)(params, yacc)
+def _packed(e: Echoes, t_ref: float, beta: float, acc: float) -> np.ndarray:
+    """What placing a turn's echoes for any (v, w) needs that does not depend on them, (6, n): dt,
+    a dt^2 / 2, ramp beta (apparent range per m/s of speed, times cos azimuth), cos azimuth,
+    azimuth, range (the rows :func:`~.fit.pair_residuals` reads)."""
+    dt = e.t_s - t_ref
+    return np.stack([dt, 0.5 * acc * dt * dt, e.ramp * beta, np.cos(e.azimuth_rad), e.azimuth_rad, e.range_m])
 
 
 def _subset(e: Echoes, idx: np.ndarray) -> Echoes:
@@ -259,24 +204,13 @@ def _subset(e: Echoes, idx: np.ndarray) -> Echoes:
 def associate(ea: Echoes, eb: Echoes, v: float, w: float, t_ref: float, beta: float,
               gate_m: float, accel_mps2: float = 0.0, yaw_accel_radps2: float = 0.0
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Mutual nearest neighbours (same ramp) between the two turns' echoes within ``gate_m``."""
-    ia_all, ib_all = [], []
+    """Mutual nearest neighbours (same ramp) between the two turns' echoes within ``gate_m``
+    (compiled: :func:`~._jit.mutual_nearest`)."""
+    from ._jit import mutual_nearest  # here: numba is imported at the first turn, not with the plugin
+
     pa = echo_points(ea, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
     pb = echo_points(eb, v, w, t_ref, beta, accel_mps2, yaw_accel_radps2)
-    for sign in (1.0, -1.0):
-        ma, mb = np.flatnonzero(ea.ramp == sign), np.flatnonzero(eb.ramp == sign)
-        if len(ma) == 0 or len(mb) == 0:
-            continue
-        da, jb = cKDTree(pb[mb]).query(pa[ma], distance_upper_bound=gate_m)
-        ok = np.isfinite(da)
-        ia, ib = ma[ok], mb[jb[ok]]
-        _, ja = cKDTree(pa[ma]).query(pb[ib])
-        mutual = ma[ja] == ia
-        ia_all.append(ia[mutual])
-        ib_all.append(ib[mutual])
-    if not ia_all:
-        return np.zeros(0, int), np.zeros(0, int)
-    return np.concatenate(ia_all), np.concatenate(ib_all)
+    return mutual_nearest(pa, pb, np.ascontiguousarray(ea.ramp, float), np.ascontiguousarray(eb.ramp, float), gate_m)
 
 
 def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: float, *, beta_s: float = 0.0,
@@ -287,7 +221,7 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
 
     Associate (mutual nearest neighbours within a gate that shrinks from ``gate_m``), then
     minimise the radial/tangential residuals scaled by their uncertainties with a robust
-    Cauchy loss (scipy.optimize.least_squares's trf, written out in :func:`~.fit.trf_cauchy`),
+    Cauchy loss (scipy.optimize.least_squares's trf, written out and compiled in :mod:`.fit`),
     a few times. The covariance is the Gauss-Newton one at the solution, scaled by the inliers'
     residual variance (at least 1). None when fewer than ``min_pairs`` pairs associate. With
     ``yaw_accel_std_radps2`` the yaw acceleration is estimated too, ``yaw_accel_radps2`` being
@@ -295,7 +229,9 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
     v, w = float(v0), float(w0)
     alpha = float(yaw_accel_radps2)
     joint = yaw_accel_std_radps2 > 0
-    res = None
+    from .fit import fit_pairs  # here: numba is imported at the first fit, not with the plugin
+
+    fun = jac = None
     for it in range(iterations):
         gate = gate_m * (0.5 ** it) if it < iterations - 1 else max(gate_m * 0.25, 3.0 * sigma_range_m)
         gate = max(gate, 3.0 * sigma_range_m)
@@ -303,28 +239,22 @@ def estimate_velocity(ea: Echoes, eb: Echoes, v0: float, w0: float, t_ref_s: flo
         if len(ia) < min_pairs:
             return None
         a, b = _subset(ea, ia), _subset(eb, ib)
+        pa, pb = _packed(a, t_ref_s, beta_s, accel_mps2), _packed(b, t_ref_s, beta_s, accel_mps2)
+        st = np.sqrt(sigma_range_m * sigma_range_m + (b.range_m * sigma_azimuth_rad) ** 2)
         if joint and it == iterations - 1:  # the last, narrowest association only
-            pr = PairResiduals(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2)
-
-            def fun(p, pr=pr):
-                return np.concatenate([pr(p, p[:, 2:3]), (p[:, 2:3] - yaw_accel_radps2) / yaw_accel_std_radps2],
-                                      axis=1)
-            res = trf_cauchy(fun, [v, w, alpha], 2.0, [1.0, 0.05, 0.1])
-            v, w, alpha = (float(x) for x in res.x)
+            sol, fun, jac, _ = fit_pairs(np.array([v, w, alpha]), pa, pb, sigma_range_m, st, yaw_accel_radps2,
+                                         yaw_accel_std_radps2, 2.0, np.array([1.0, 0.05, 0.1]))
+            v, w, alpha = (float(x) for x in sol)
         else:
-            pr = PairResiduals(a, b, t_ref_s, beta_s, sigma_range_m, sigma_azimuth_rad, accel_mps2)
-
-            def fun(p, pr=pr, alpha=alpha):
-                return pr(p, alpha)
-            res = trf_cauchy(fun, [v, w], 2.0, [1.0, 0.05])
-            v, w = (float(x) for x in res.x)
-    r = res.fun[:-1] if joint else res.fun  # the prior's residual apart
+            sol, fun, jac, _ = fit_pairs(np.array([v, w]), pa, pb, sigma_range_m, st, alpha, 1.0, 2.0,
+                                         np.array([1.0, 0.05]))
+            v, w = (float(x) for x in sol)
+    r = fun[:-1] if joint else fun  # the prior's residual apart
     n = len(r) // 2
     inl = np.hypot(r[:n], r[n:]) < 3.0
     if int(inl.sum()) < min_pairs:
         return None
-    j = res.jac
-    jtj = j.T @ j
+    jtj = jac.T @ jac
     try:
         cov = np.linalg.inv(jtj)[:2, :2]
     except np.linalg.LinAlgError:
@@ -362,8 +292,8 @@ def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_ran
     problem; isolated echoes only coincide near the truth).
 
     A coincidence is an echo of ``ea`` falling in a ``gate_m`` cell of the plane that holds
-    an echo of the same ramp of ``eb``: every candidate is scored at once on integer cell
-    keys (np.sort + np.searchsorted) rather than one k-d tree per candidate. With a
+    an echo of the same ramp of ``eb``: every candidate is scored on integer cell keys (a hash
+    table per candidate, compiled) rather than one k-d tree per candidate. With a
     ``prior`` (v, w, 2x2 covariance) each score loses half the candidate's squared
     Mahalanobis distance to it (a tie-breaker between look-alike peaks). Returns (v, w,
     coincidences) of the best candidate (ties: the grid's first), None without echoes."""
@@ -373,10 +303,7 @@ def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_ran
     vs = np.arange(v_range[0], v_range[1] + 0.5 * v_step, v_step)
     ws = np.arange(w_range[0], w_range[1] + 0.5 * w_step, w_step)
     vv, ww = (x.ravel() for x in np.meshgrid(vs, ws, indexing="ij"))
-    per = max(1, 400_000 // ((len(a) + len(b)) * len(vs)))  # yaw rates per chunk
-    scores = np.concatenate([_scores(a, b, vs, ws[i:i + per], t_ref_s, beta_s, gate_m, accel_mps2,
-                                     yaw_accel_radps2)
-                             for i in range(0, len(ws), per)], axis=1).ravel()
+    scores = _scores(a, b, vs, ws, t_ref_s, beta_s, gate_m, accel_mps2, yaw_accel_radps2).ravel()
     value = scores.astype(float)
     if prior is not None:
         d = np.column_stack([vv - prior[0], ww - prior[1]])
@@ -385,10 +312,10 @@ def search_velocity(ea: Echoes, eb: Echoes, t_ref_s: float, beta_s: float, v_ran
     return float(vv[k]), float(ww[k]), int(scores[k])
 
 
-def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: float, gate_m: float,
-           acc: float, yacc: float = 0.0) -> np.ndarray:
-    """Integer cell keys of every echo for every candidate, (len(ws), len(vs), n): the point
-    is linear in v for a given w (x = x0(w) + v x1(w)), so the trigonometry runs once per w."""
+def _cell_terms(e: Echoes, ws: np.ndarray, t_ref_s: float, beta_s: float, acc: float, yacc: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every echo's point for every yaw rate as x0 + v x1, y0 + v y1, (len(ws), n) each: the point
+    is linear in v for a given w, so the trigonometry runs once per w."""
     dt = e.t_s[None, :] - t_ref_s
     c, s, sinc, cosc = _arc_factors((ws[:, None] + 0.5 * yacc * dt) * dt)
     ca, sa = np.cos(e.azimuth_rad)[None, :], np.sin(e.azimuth_rad)[None, :]
@@ -399,20 +326,17 @@ def _cells(e: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: fl
     y0 = d0 * cosc + e.range_m[None, :] * sang
     x1 = dt * sinc + dop * cang
     y1 = dt * cosc + dop * sang
-    v = vs[None, :, None]
-    inv = 1.0 / gate_m
-    ix = np.floor((x0[:, None, :] + v * x1[:, None, :]) * inv).astype(np.int64) + (1 << 20)
-    iy = np.floor((y0[:, None, :] + v * y1[:, None, :]) * inv).astype(np.int64) + (1 << 20)
-    cand = np.arange(len(ws) * len(vs), dtype=np.int64).reshape(len(ws), len(vs), 1)
-    ramp = (e.ramp > 0).astype(np.int64)[None, None, :]
-    return (((cand << 1 | ramp) << 21 | ix) << 21) | iy
+    return x0, y0, x1, y1
 
 
 def _scores(a: Echoes, b: Echoes, vs: np.ndarray, ws: np.ndarray, t_ref_s: float, beta_s: float,
             gate_m: float, acc: float, yacc: float = 0.0) -> np.ndarray:
-    """Coincidences per candidate, (len(vs), len(ws))."""
-    # the candidate's index is the key's high part: sorting each candidate's keys sorts them all
-    kb = np.sort(_cells(b, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc), axis=2).ravel()
-    ka = _cells(a, vs, ws, t_ref_s, beta_s, gate_m, acc, yacc)
-    pos = np.minimum(np.searchsorted(kb, ka), len(kb) - 1)
-    return np.count_nonzero(kb[pos] == ka, axis=2).T
+    """Coincidences per candidate, (len(vs), len(ws)): the echoes' cells floor(point / gate_m) for
+    each candidate, ``b``'s hashed and ``a``'s looked up, in a compiled loop (:mod:`._jit`)."""
+    from ._jit import coincidences  # here: numba is imported at the first search, not with the plugin
+
+    out = np.empty((len(vs), len(ws)), np.int64)
+    coincidences(*_cell_terms(a, ws, t_ref_s, beta_s, acc, yacc), (a.ramp > 0).astype(np.int64),
+                 *_cell_terms(b, ws, t_ref_s, beta_s, acc, yacc), (b.ramp > 0).astype(np.int64),
+                 np.ascontiguousarray(vs, float), 1.0 / gate_m, out)
+    return out
