@@ -587,9 +587,10 @@ class _Translator:
         # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
         if self.rows is None:
             dy, dx, snr, h = _peak(_correlate(self.fa, fb, self.weight, self.b.image.shape))
-        else:
-            fa = self.fa if not fine else self.fa_fine
-            dy, dx, snr, h = _coarse_peak(fa, fb, self.weight, self.n)
+        elif fine:
+            dy, dx, snr, h = _coarse_peak(self.fa_fine, fb, self.weight, self.n)
+        else:  # the search on the halved images: only the SNR is used (the translation is then final()'s)
+            dy, dx, snr, h = _coarse_peak(self.fa, fb, self.weight, self.n, fit=False)
         return snr, theta, -dx * self.p.cell_m, -dy * self.p.cell_m, h
 
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
@@ -646,7 +647,8 @@ def _coarse_rows(n: int, weight: np.ndarray | None, cols: int) -> np.ndarray | N
     return _coarse_of[key]
 
 
-def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int) -> tuple[float, float, float, np.ndarray]:
+def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
+                 fit: bool = True) -> tuple[float, float, float, np.ndarray]:
     """:func:`_peak` of :func:`_correlate`'s n x n surface from the rows and columns of the
     spectra where the low-pass is not 0 (|f| < 1/4 cycle / cell on both axes), without the
     n x n surface. Why nothing is lost: the surface is the inverse transform of a spectrum
@@ -686,7 +688,7 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int) -> 
         j, i = np.unravel_index(int(np.argmax(w)), w.shape)
     else:
         w = window(y, x, 3)
-    dy, dx, h = _quadratic_peak(w, 3, 3)
+    dy, dx, h = _quadratic_peak(w, 3, 3) if fit else (math.nan, math.nan, np.full((2, 2), math.nan))  # fit=False: SNR only
     # the n x n surface's sum and sum of squares: 4 interleaved grids, each with c / 4's
     c_mean, c_sd = (float(v[0, 0]) for v in cv2.meanStdDev(c))  # summed in float64
     s_all = c_mean * c.size
