@@ -688,7 +688,8 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
         j, i = np.unravel_index(int(np.argmax(w)), w.shape)
     else:
         w = window(y, x, 3)
-    dy, dx, h = _quadratic_peak(w, 3, 3) if fit else (math.nan, math.nan, np.full((2, 2), math.nan))  # fit=False: SNR only
+    # fit=False: the SNR only (the coarse search's)
+    dy, dx, h = _quadratic_peak(w, 3, 3) if fit else (math.nan, math.nan, np.full((2, 2), math.nan))
     # the n x n surface's sum and sum of squares: 4 interleaved grids, each with c / 4's
     c_mean, c_sd = (float(v[0, 0]) for v in cv2.meanStdDev(c))  # summed in float64
     s_all = c_mean * c.size
