@@ -43,9 +43,9 @@ pull the translation to zero. :func:`register` then runs the rest of Algorithm 1
   rotation; the translation returned is computed at the chosen rotation from the full
   images' spectra, as before. On the 400 RADIATE turns against their GPS (graphs/oxford.yaml):
   ATE 4.028 -> 3.715 m, pairs 0.0965 -> 0.0964 m and 0.6621 -> 0.6620 deg; Oxford's 10 pairs
-  5.79 -> 5.80 cm and 0.084 -> 0.083 deg, ATE 0.088 -> 0.087 m; 0.74 of the CPU time per
-  registration (with its image's preparation: 41.9 -> 31.2 ms, median, one thread, the old and
-  new code alternating on the same RADIATE turns);
+  5.79 -> 5.80 cm and 0.084 -> 0.083 deg, ATE 0.088 -> 0.087 m; 0.73 of the CPU time per
+  registration (with its image's preparation: 35.3 -> 25.8 ms, median, one thread, the old and
+  new code alternating on the same 200 RADIATE turns);
 - beyond Algorithm 1 (``refine_deg``, 0 to switch it off): the rotation of the magnitude
   spectra is good to about a polar bin (0.5 deg): it is refined by a parabola through the
   translation peak's SNR at theta - step, theta, theta + step, and the translation taken
