@@ -101,20 +101,24 @@ def bench_fmt_radiate(mission_path: str | Path, turns: int = 100, out: str | Pat
 def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
     """ms per turn of slam.FmtRegistration.process by stage, from a profile of its calls: total;
     prepare (resampling, threshold, polar spectrum); rotation (of the spectra); translation (of the
-    two rotation candidates); refine (the rotation refinement's translations); of which peak (the
-    correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse one), snr (the
-    full grid's and the rotation's SNR) and fft (every FFT)."""
+    two rotation candidates, and the final one on the full grid when the refinement is off or ends
+    without a maximum); refine (the rotation refinement's translations, the final one included); of
+    which peak (the correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse
+    one), snr (the full grid's and the rotation's SNR) and fft (every FFT)."""
     ct: dict[str, float] = {}
     for (path, _, fn), (_, _, _, cum, callers) in stats.stats.items():  # type: ignore[attr-defined]
         if path == "~" and "pypocketfft" in fn:
             ct["fft"] = ct.get("fft", 0.0) + cum
         if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
             continue
-        if fn == "_translation":
-            ct["translation"] = sum(v[3] for c, v in callers.items() if c[2] == "register")
+        if fn in ("translation", "final"):  # _Translator's, as register calls them (not through each other)
+            ct["translation"] = ct.get("translation", 0.0) + sum(v[3] for c, v in callers.items()
+                                                                 if c[2] == "register")
         elif fn in ("_peak", "_coarse_peak"):
             ct["peak"] = ct.get("peak", 0.0) + cum
-        elif fn in ("process", "prepare", "_rotation", "_refine_rotation", "_snr"):
+        elif fn in ("_snr", "_snr_sums"):
+            ct["snr"] = ct.get("snr", 0.0) + sum(v[3] for c, v in callers.items() if c[2] != "_snr_sums")
+        elif fn in ("process", "prepare", "_rotation", "_refine_rotation"):
             ct[_STAGE.get(fn, fn)] = cum
     return {k: 1e3 * ct.get(k, 0.0) / max(turns, 1) for k in SPLIT}
 

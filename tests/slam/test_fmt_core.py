@@ -127,3 +127,59 @@ def test_older_spectrum_computed_once_per_image():
     assert next(iter(a.spectra.values())) is cached
     assert (r1.x_m, r1.y_m, r1.theta_rad) == (r2.x_m, r2.y_m, r2.theta_rad)
     assert r1.ok and abs(r1.x_m - 1.3) < 0.2 and abs(r1.y_m + 0.4) < 0.2 and abs(math.degrees(r1.theta_rad) - 4) < 0.5
+
+
+def test_second_candidate_from_the_conjugate_spectrum_is_the_warped_one():
+    # b turned by theta + pi = b turned by theta, then by 180 deg about the centre cell: its spectrum is the
+    # conjugate (to the window's half-cell asymmetry), so register's second candidate needs no warp of its own
+    for p in (P, FmtParams(cell_m=0.2, size=256, range_min_m=2.5, range_max_m=25.0, taper_m=4.0)):
+        a, b = _images(p)
+        tr = core._Translator(a, b, p)
+        theta = math.radians(4.0)
+        fb = tr.spectrum(theta)
+        got = tr.translation(theta + math.pi, np.conj(fb))
+        want = tr.translation(theta + math.pi)
+        assert got[0] == pytest.approx(want[0], rel=0.02)
+        np.testing.assert_allclose(got[2:4], want[2:4], atol=0.02 * p.cell_m)
+        assert got[0] < tr.translation(theta, fb)[0]  # the wrong candidate: the weaker peak
+
+
+def test_coarse_search_and_the_translation_returned():
+    # on the coarse grid (low-pass 0 beyond 1/4 cycle per cell) the rotations are tried on the images halved by
+    # cv2.pyrDown; the translation returned is the full grid's (the coarse-grid peak of the full spectra's rows)
+    a, b = _images()
+    tr = core._Translator(a, b, P)
+    assert tr.rows is not None
+    theta = math.radians(4.0)
+    hann = core._hann(a.image.shape)
+    fa = core._rfft2(a.image * hann, tr.cols)[tr.rows]
+    fb = core._rfft2(core._derotate(b.image, theta) * hann, tr.cols)[tr.rows]
+    want = core._coarse_peak(fa, fb, tr.weight, a.image.shape[0])
+    snr, t, x, y, h = tr.final(theta)
+    np.testing.assert_array_equal((-x / P.cell_m, -y / P.cell_m), (want[1], want[0]))
+    assert snr == want[2]
+    coarse = tr.translation(theta)  # the search: its SNR only (the peak of the halved images' correlation)
+    assert coarse[0] == pytest.approx(snr, rel=0.25)
+    assert math.isnan(coarse[2]) and math.isnan(coarse[3])
+    assert tr.translation(theta + math.radians(2.0))[0] < coarse[0]  # the SNR falls off the right rotation
+    assert abs(x - 1.3) < 0.2 and abs(y + 0.4) < 0.2
+    r = register(a, b, P)
+    assert (r.x_m, r.y_m, r.snr_translation) == tr.final(r.theta_rad)[2:4] + (tr.final(r.theta_rad)[0],)
+
+
+@pytest.mark.parametrize("iy, ix", [(40, 70), (0, 127), (125, 2)])
+def test_snr_from_sums_is_the_masked_one(iy, ix):
+    c = np.random.default_rng(iy + ix).normal(size=(128, 128)).astype(np.float32)
+    c[iy, ix] = 30.0
+    assert core._snr_sums(c, iy, ix) == pytest.approx(core._snr(c, iy, ix), rel=1e-5)
+
+
+def test_whitened_spectrum_is_the_cross_power_over_its_magnitude():
+    rng = np.random.default_rng(4)
+    fa, fb = ((rng.normal(size=(64, 33)) + 1j * rng.normal(size=(64, 33))).astype(np.complex64) for _ in range(2))
+    fa[3, 4] = 0.0
+    weight = rng.random((64, 33)).astype(np.float32)
+    cross = (fb * np.conj(fa)).astype(np.complex128)
+    mag = np.maximum(np.abs(cross), 1e-12 * np.abs(cross).max())
+    np.testing.assert_allclose(core._whitened(fa, fb, weight), cross / mag * weight, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(core._whitened(fa, fb, None), cross / mag, rtol=1e-6, atol=1e-7)
