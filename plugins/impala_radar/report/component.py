@@ -5,10 +5,12 @@ what it follows, is described in :mod:`impala_radar.report.core`.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+
+if TYPE_CHECKING:  # matplotlib (0.4 s) loads when a report is drawn, not at each command's start
+    from matplotlib.figure import Figure
 
 from impala_flow import Component, Input, Param
 from impala_flow.msgs import Grid
@@ -23,6 +25,12 @@ __all__ = ["FrontendReport"]
 def _db(x: np.ndarray) -> np.ndarray:
     return 10.0 * np.log10(np.maximum(np.asarray(x, float), 1e-30))
 
+
+
+def _figure(figsize: tuple[float, float]) -> Figure:
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, layout="constrained")
 
 class FrontendReport(Component):
     """Keeps the last complete turn of beams and its detections, the last speed estimate
@@ -72,6 +80,8 @@ class FrontendReport(Component):
             self._pairs(out / "pairs.png", self._full[both[-1]], self._dets[both[-1]])
 
     def _save(self, fig: Figure, path: Path) -> None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
         FigureCanvasAgg(fig)
         fig.savefig(path, dpi=self.dpi)
         self.written.append(str(path))
@@ -80,7 +90,7 @@ class FrontendReport(Component):
         grids = [("panoramic image (one turn)", self.image.get()),
                  ("after multi-look anti-speckle filter", self.filtered.get())]
         grids = [(n, g) for n, g in grids if g is not None]
-        fig = Figure(figsize=(5.2 * len(grids), 5.0), layout="constrained")
+        fig = _figure((5.2 * len(grids), 5.0))
         axes = fig.subplots(1, len(grids), squeeze=False)[0]
         obs = grids[0][1].data[grids[0][1].data > 0]
         lo, hi = (np.percentile(_db(obs), [5, 99.9]) if obs.size else (-150, -100))
@@ -103,7 +113,7 @@ class FrontendReport(Component):
 
     def _doppler(self, path: Path, d: RadarDetections) -> None:
         fit = fit_ego_velocity(d.azimuth_rad, d.radial_speed_mps)
-        fig = Figure(figsize=(8, 4.5), layout="constrained")
+        fig = _figure((8, 4.5))
         ax = fig.subplots()
         az_deg = np.degrees(np.mod(d.azimuth_rad, 2 * np.pi))
         if fit is not None:
@@ -137,7 +147,7 @@ class FrontendReport(Component):
         b = beams[k]
         sel = d.beam == k
         bu, bd = beat_bins_of_detections(d.range_m[sel], d.radial_speed_mps[sel], config)
-        fig = Figure(figsize=(9, 4.8), layout="constrained")
+        fig = _figure((9, 4.8))
         ax = fig.subplots()
         bins = np.arange(len(b.up))
         up_db, down_db = _db(b.up), _db(b.down)

@@ -35,9 +35,9 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 
 from ..dead_reckoning.core import arc_step
 from .distortion import (
@@ -50,6 +50,9 @@ from .distortion import (
     extract_echoes,
     search_velocity,
 )
+
+if TYPE_CHECKING:
+    from filterpy.kalman import KalmanFilter
 
 __all__ = ["DistortionConfig", "DistortionCore", "TurnResult"]
 
@@ -123,6 +126,8 @@ class DistortionCore:
         return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
 
     def _new_filter(self, v: float, w: float, cov: np.ndarray) -> KalmanFilter:
+        from filterpy.kalman import KalmanFilter  # here: filterpy (scipy.stats, 0.5-0.85 s) loads when used
+
         kf = KalmanFilter(dim_x=3, dim_z=2)
         kf.x = np.array([v, 0.0, w])
         kf.P = np.diag([cov[0, 0], self.cfg.accel_std_mps2 ** 2, cov[1, 1]])

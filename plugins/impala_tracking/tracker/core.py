@@ -25,11 +25,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 
 from ..types import MoverDetections
+
+if TYPE_CHECKING:  # filterpy (scipy.stats: 0.85 s) loads at the first track, not at each command's start
+    from filterpy.kalman import KalmanFilter
 
 __all__ = ["cv_transition", "cv_noise", "measurement_matrix", "pair_distances", "line_of_sight", "measurement_cov",
            "existence_update", "Track"]
