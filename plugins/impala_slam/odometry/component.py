@@ -4,6 +4,7 @@ what it follows, is described in :mod:`impala_slam.odometry.core`.
 
 from __future__ import annotations
 
+import importlib
 import math
 import time
 
@@ -72,6 +73,8 @@ class DistortionOdometry(Component):
             self.gate_m, self.sigma_range_m, math.radians(self.sigma_azimuth_deg), self.min_pairs,
             self.accel_std_mps2, math.radians(self.yaw_accel_std_dps2))
         self.core = DistortionCore(cfg)
+        # the filter's library (filterpy loads scipy.stats: 0.5-0.8 s) loaded now, not in a live radar's first turn
+        importlib.import_module("filterpy.kalman")
         self._beams: list[tuple[int, RadarBeam]] = []
         self._turn: int | None = None
         self._t0: int | None = None

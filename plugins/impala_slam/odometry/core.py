@@ -126,7 +126,9 @@ class DistortionCore:
         return self.cfg.sigma_range_m or 0.5 * config.range_resolution_m
 
     def _new_filter(self, v: float, w: float, cov: np.ndarray) -> KalmanFilter:
-        from filterpy.kalman import KalmanFilter  # here: filterpy (scipy.stats, 0.5-0.85 s) loads when used
+        from filterpy.kalman import (
+            KalmanFilter,  # here, not at import (scipy.stats: 0.5-0.8 s); the component loads it in start()
+        )
 
         kf = KalmanFilter(dim_x=3, dim_z=2)
         kf.x = np.array([v, 0.0, w])

@@ -4,6 +4,8 @@ what it follows, is described in :mod:`impala_tracking.tracker.core`.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.special import ndtr
@@ -58,8 +60,11 @@ class Tracker(Component):
         self.live: list[Track] = []
         self.next_id = 1
         self.turn = 0
-        from scipy.stats import chi2  # here: scipy.stats costs 0.85 s to import, paid by graphs that track
+        # here, not at import: scipy.stats and filterpy cost 0.85 s to import, paid by graphs that track only,
+        # and before the first sample (a live run's first turn is not late)
+        from scipy.stats import chi2
 
+        importlib.import_module("filterpy.kalman")
         self.gate_d2 = float(chi2.ppf(self.gate_prob, 3))
         self._radar_xy = np.zeros(2)
         self.n_born = 0
@@ -153,7 +158,7 @@ class Tracker(Component):
         tr.t_ns = t_ns
 
     def _new_track(self, det: MoverDetections, j: int, u: np.ndarray, r: np.ndarray) -> Track:
-        from filterpy.kalman import KalmanFilter  # here: filterpy loads scipy.stats (0.85 s) at the first track
+        from filterpy.kalman import KalmanFilter  # loaded in start()
 
         kf = KalmanFilter(dim_x=4, dim_z=3)
         kf.x = np.array([[det.xy_m[j, 0]], [det.xy_m[j, 1]], [det.radial_speed_mps[j] * u[0]],
