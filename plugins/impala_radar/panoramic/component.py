@@ -142,9 +142,10 @@ class PanoramicBuilder(Component):
                       "whose displacement gives the initial speed")
     min_turn_fraction = Param(float, default=0.5, ge=0, le=1,
                               doc="a partial last turn is imaged if it holds this fraction of a turn")
-    twist_wait_s = Param(float, default=0.5, ge=0,
+    twist_wait_s = Param(float, default=0.5, ge=0, le=5.0,
                          doc="with a fed-back twist: a complete turn waits at most this long (radar time, "
-                         "beams after its last) for the twist of the previous image; 0: never waits")
+                         "beams after its last) for the twist of the previous image; 0: never waits (the turns "
+                         "waiting are bounded by it: 5 s of a 4 Hz radar is 20 turns)")
 
     def start(self) -> None:
         self._turn = TurnBuffer()
