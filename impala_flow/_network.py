@@ -58,6 +58,7 @@ class Network:
         src._targets.append((dst, delayed))
         dst.sources.append(src)
         dst.connected = True
+        dst.fed_back = dst.fed_back or delayed
         self.connections.append(c)
         return c
 

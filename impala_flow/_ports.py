@@ -245,7 +245,7 @@ class InputPort:
     __slots__ = (
         "name", "owner", "decl", "policy", "maxsize", "overflow", "stats", "_fifo", "_last",
         "_hist_t", "_hist_s", "_history_ns", "group", "_current", "_cond", "angular",
-        "trigger_name", "connected", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb", "validate",
+        "trigger_name", "connected", "fed_back", "rank", "sources", "_fast", "maxbytes", "_nb", "_hist_nb", "validate",
     )
 
     def __init__(self, owner: Owner, name: str, decl: InputDecl) -> None:
@@ -271,6 +271,7 @@ class InputPort:
         self.trigger_name = name if decl.sync is None else decl.sync
         self.connected = False
         self.sources: list[OutputPort] = []  # the outputs feeding this input
+        self.fed_back = False  # a delayed connection ([delay]: a feedback loop) feeds this input
         self.rank = 0  # event key of the owner (2 x its graph rank), set by the offline executor
         # set by the offline executor for its run: a reactive input outside any sync group,
         # without history, on one thread: push() and take() skip every other case

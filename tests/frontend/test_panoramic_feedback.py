@@ -105,3 +105,35 @@ def test_a_slam_that_never_answers_is_waited_for_a_bounded_time(beams) -> None:
     live, stale_live = _run(beams, live=True, answer=False, wait_s=0.3)
     assert len(offline) == 10 and stale_offline == 9 and stale_live == stale_offline
     assert _same(live, offline)
+
+
+class LaggingTwist(Component):
+    """A twist from beside the builder (an estimator on the same beams, no feedback loop): at each
+    turn's first beam, stamped 0.2 s earlier (its estimate lags), a value that depends on the turn."""
+
+    beams = Input(object)
+    twist = Output(Twist2D)
+
+    def process(self, t: int) -> None:
+        b = self.beams.take()
+        if b.index == 0:
+            self.twist.emit(t - 200_000_000, Twist2D(5.0 + 0.01 * b.turn, 0.002 * b.turn))
+
+
+def test_a_twist_from_beside_the_builder_is_used_as_it_comes(beams) -> None:
+    """Without a delayed connection (not a feedback loop) the builder never holds a turn for the
+    twist: the images are those of a builder that never waits (``twist_wait_s: 0``)."""
+    images = {}
+    for wait_s in (0.0, 2.0):
+        net = Network(name="beside")
+        pano = PanoramicBuilder("pano", cell_m=0.5, range_max_m=50.0, twist_wait_s=wait_s)
+        sink = CollectingSink("sink")
+        for c in (ScriptedSource("src", beams), LaggingTwist("odo"), pano, sink):
+            net.add(c)
+        for spec in ("src.beams -> pano.beams", "src.beams -> odo.beams", "odo.twist -> pano.twist",
+                     "pano.image -> sink.x"):
+            connect(net, spec)
+        assert OfflineExecutor(net).run().error is None
+        assert not pano.twist.fed_back
+        images[wait_s] = [(s.timestamp, s.data.data) for s in sink.samples]
+    assert len(images[0.0]) == 10 and _same(images[2.0], images[0.0])

@@ -88,8 +88,9 @@ class PanoramicBuilder(Component):
     Motion during the turn, first available of: the ``odometer`` and ``gyro`` histories
     over the turn; the last estimated ``twist`` (e.g. ``slam.twist`` through a delayed
     connection: the velocity of the previous estimates, for a radar without odometry);
-    the constant ``speed_mps`` / ``yaw_rate_radps``. Fed-back twist (``twist`` connected, no
-    odometer or gyro): a complete turn waits for the twist of the previous image, as offline,
+    the constant ``speed_mps`` / ``yaw_rate_radps``. Fed-back twist (``twist`` connected
+    through a delayed connection, a feedback loop; no odometer or gyro): a complete turn waits
+    for the twist of the previous image, as offline,
     where the previous turn's estimate is always back first; live, a SLAM may still be busy
     with the previous turn when this one closes (its first turns, a slow turn). The wait is
     bounded in radar time: once a beam stamped ``twist_wait_s`` after the waiting turn's last
@@ -163,7 +164,10 @@ class PanoramicBuilder(Component):
         self.stale_twist = 0  # turns imaged with a twist older than the previous image
         # complete turns waiting for the twist of the previous image: (beams, their work origin)
         self._waiting: deque[tuple[list[tuple[int, RadarBeam]], int | None]] = deque()
-        self._twist_fed_back = self.twist.connected and not self.odometer.connected and not self.gyro.connected
+        # a feedback loop (the twist of a consumer of these images, through [delay]): offline its estimate of
+        # the previous image is always back first, and live the builder waits for it; a twist from a
+        # source beside the builder (an odometry on the same beams) is used as it comes, as offline
+        self._twist_fed_back = self.twist.fed_back and not self.odometer.connected and not self.gyro.connected
         self._wait_ns = round(self.twist_wait_s * 1e9)
         # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
         # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
