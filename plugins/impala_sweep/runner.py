@@ -454,30 +454,42 @@ def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | N
     # Dask's default MALLOC_TRIM_THRESHOLD_=65536 makes numpy-heavy graphs about 2x slower
     # (see task.undo_dask_malloc_trim): the local cluster's workers do without it
     config: dict[str, Any] = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
-    address = None
-    if board is not None:
-        host, port = board
-        if port == 0 or not _free_port(host, port):
-            port = _any_free_port(host)
-        address = f"{host}:{port}"
-        if _loopback(host):
-            # the dashboard's websockets only for pages served from this machine (not '*', bokeh's
-            # default: a web page elsewhere could otherwise talk to it through the user's browser)
-            config["distributed.scheduler.dashboard.bokeh-application.allow_websocket_origin"] = [
-                f"{h}:{port}" for h in ("127.0.0.1", "localhost", host)]
     cluster = None
-    try:
-        with _children_ignore_sigint(), dask.config.set(config):
-            # host: the scheduler, the nannies and the workers listen on the loopback interface only
-            cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
-                                   host="127.0.0.1", dashboard_address=address,
-                                   silence_logs=logging.CRITICAL if quiet_dask() else False)
-        client = Client(cluster)
-    except BaseException:  # an interrupt while starting included
-        if cluster is not None:
-            with _quiet_close():
-                cluster.close()
-        raise
+    for attempt in range(2):
+        address = None
+        if board is not None:
+            host, port = board
+            if port == 0 or not _free_port(host, port) or attempt:
+                port = _any_free_port(host)
+            address = f"{host}:{port}"
+            if _loopback(host):
+                # the dashboard's websockets only for pages served from this machine (not '*', bokeh's
+                # default: a web page elsewhere could otherwise talk to it through the user's browser)
+                config["distributed.scheduler.dashboard.bokeh-application.allow_websocket_origin"] = [
+                    f"{h}:{port}" for h in ("127.0.0.1", "localhost", host)]
+        try:
+            with _children_ignore_sigint(), dask.config.set(config):
+                # host: the scheduler, the nannies and the workers listen on the loopback interface only
+                cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
+                                       host="127.0.0.1", dashboard_address=address,
+                                       silence_logs=logging.CRITICAL if quiet_dask() else False)
+            client = Client(cluster)
+        except Exception as e:
+            if cluster is not None:
+                with _quiet_close():
+                    cluster.close()
+                cluster = None
+            # the dashboard's port was free when checked and taken before Dask bound it (another
+            # sweep starting at the same time): once more, on a port the system gives
+            if attempt == 0 and address is not None and "already in use" in str(e):
+                continue
+            raise
+        except BaseException:  # an interrupt while starting
+            if cluster is not None:
+                with _quiet_close():
+                    cluster.close()
+            raise
+        break
     return client, cluster, f"local cluster of {n} worker process(es) x {threads_per_worker} thread(s)"
 
 
