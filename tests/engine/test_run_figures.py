@@ -348,16 +348,19 @@ class Poser(Component):
         self.ready.set()  # type: ignore[union-attr]
 
 
-def test_latency_from_the_completing_beam_to_the_pose() -> None:
-    n = 40
+def run_turn_chain(turns: Component, n: int) -> RunSummary:
+    """``n`` beams -> Front -> ``turns`` -> Poser -> a sink, live on one fake clock."""
     clock, ready = FakeCounter(), threading.Event()
     Beams.clock = Front.clock = Poser.clock = clock
-    Beams.ready = Turns.ready = Poser.ready = ready
-    src, front, turns, poser, sink = Beams("src", n=n), Front("front"), Turns("turns"), Poser("poser"), \
-        CollectingSink("sink")
-    net = make_net(src, front, turns, poser, sink, connections=[
+    Beams.ready = type(turns).ready = Poser.ready = ready  # type: ignore[attr-defined]
+    net = make_net(Beams("src", n=n), Front("front"), turns, Poser("poser"), CollectingSink("sink"), connections=[
         "src.out -> front.x", "front.y -> turns.x", "turns.turn -> poser.turn", "poser.pose -> sink.x"])
-    summary = run_thread(lambda: RealTimeExecutor(net, clock=clock).run())
+    return run_thread(lambda: RealTimeExecutor(net, clock=clock).run())
+
+
+def test_latency_from_the_completing_beam_to_the_pose() -> None:
+    n = 40
+    summary = run_turn_chain(Turns("turns"), n)
     assert summary.processed["sink"] == n // 4
     work = (np.arange(n) % 5 + 1) * 100_000                      # Front's cost per beam
     last = work[3::4]                                             # the beam that completes each turn
@@ -407,14 +410,7 @@ def test_a_held_result_counts_its_wait_in_its_latency() -> None:
     completing beam, the 1 ms to the next beam and Front's work on that one (the fake clock's
     advances); the turn after it is still held at the end (not emitted)."""
     n = 40
-    clock, ready = FakeCounter(), threading.Event()
-    Beams.clock = Front.clock = Poser.clock = clock
-    Beams.ready = HeldTurns.ready = Poser.ready = ready
-    src, front, turns, poser, sink = Beams("src", n=n), Front("front"), HeldTurns("turns"), Poser("poser"), \
-        CollectingSink("sink")
-    net = make_net(src, front, turns, poser, sink, connections=[
-        "src.out -> front.x", "front.y -> turns.x", "turns.turn -> poser.turn", "poser.pose -> sink.x"])
-    summary = run_thread(lambda: RealTimeExecutor(net, clock=clock).run())
+    summary = run_turn_chain(HeldTurns("turns"), n)
     assert summary.processed["sink"] == n // 4 - 1
     work = (np.arange(n) % 5 + 1) * 100_000
     held = work[3:-1:4] + 1_000_000 + work[4::4]
