@@ -474,20 +474,15 @@ def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | N
                                        host="127.0.0.1", dashboard_address=address,
                                        silence_logs=logging.CRITICAL if quiet_dask() else False)
             client = Client(cluster)
-        except Exception as e:
+        except BaseException as e:  # an interrupt while starting included
             if cluster is not None:
                 with _quiet_close():
                     cluster.close()
                 cluster = None
             # the dashboard's port was free when checked and taken before Dask bound it (another
             # sweep starting at the same time): once more, on a port the system gives
-            if attempt == 0 and address is not None and "already in use" in str(e):
+            if attempt == 0 and address is not None and isinstance(e, Exception) and "already in use" in str(e):
                 continue
-            raise
-        except BaseException:  # an interrupt while starting
-            if cluster is not None:
-                with _quiet_close():
-                    cluster.close()
             raise
         break
     return client, cluster, f"local cluster of {n} worker process(es) x {threads_per_worker} thread(s)"
