@@ -12,12 +12,15 @@ errors of graphs/oxford.yaml on the real sample (imported with ``impala-flow imp
 graphs/oxford.yaml on it and kiss-icp (graphs/kiss_icp_navtech.yaml) on the same scans:
 :func:`bench_radiate`, which bench/speed.py can call.
 
-Times are thread CPU (``time.thread_time`` around each component's process: far less inflated
-than wall time on a loaded machine), split per R-SLAM stage: amplitude (dB image), prepare (map
-windows, prepared panoramics, window DFTs), coarse and fine (the rotations of each level),
-update (eq. 6). The peak RSS and the map's size are printed; the last line is one JSON
-object with unit-named keys (rslam_beynes_ms_per_turn, rslam_beynes_ate_m,
-rslam_beynes_drift_pct, rslam_map_mb, rslam_radiate_ms_per_turn, rslam_radiate_ate_m,
+Times are CPU (far less inflated than wall time on a loaded machine): R-SLAM's is the sum of
+its stages' thread CPU, on every thread it uses (``--threads``, default the component's 2),
+split per stage: amplitude (dB image), prepare (map windows, prepared panoramics, window DFTs),
+coarse and fine (the rotations of each level), update (eq. 6); the other components' is
+``time.thread_time`` around their process. R-SLAM's wall time per turn (median) is printed
+beside it: with 2 threads it is lower than the CPU. The peak RSS and the map's size are printed;
+the last line is one JSON object with unit-named keys (rslam_beynes_ms_per_turn,
+rslam_beynes_wall_ms_per_turn, rslam_beynes_ate_m, rslam_beynes_drift_pct, rslam_map_mb,
+rslam_radiate_ms_per_turn, rslam_radiate_wall_median_ms_per_turn, rslam_radiate_ate_m,
 kissicp_radiate_ms_per_scan, peak_rss_mb, ...). Targets (issue 26): R-SLAM <= 30 ms/turn on
 Beynes, <= 40 ms/turn on RADIATE; ATE <= 1.0 m, drift <= 0.5 % on Beynes.
 """
@@ -58,7 +61,7 @@ components:
   mission: {type: radar.Simulator, params: {scenario: beynes, duration_s: %(duration)s, seed: %(seed)s}}
   panoramic: {type: radar.PanoramicBuilder, params: {cell_m: 0.2}}
   speckle: {type: radar.SpeckleFilter, params: {looks: 2}}
-  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6}}
+  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6, threads: %(threads)s}}
   deadreckoning: {type: slam.DeadReckoning, params: {period_s: 0.5}}
   eval: {type: eval.TrajectoryEvaluator, params: {report: "%(report)s"}}
 connections:
@@ -80,7 +83,8 @@ name: rslam-bench-synthetic
 clock: {mode: replay, speed: max}
 components:
   mission: {type: bench.SyntheticMission, params: {turns: %(turns)s}}
-  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6, range_max_m: 60.0, db_floor_quantile: 0.5}}
+  slam: {type: slam.RSlam, params: {map_period_s: 1.0e6, range_max_m: 60.0, db_floor_quantile: 0.5,
+                                    threads: %(threads)s}}
   deadreckoning: {type: slam.DeadReckoning, params: {period_s: 0.5}}
   eval: {type: eval.TrajectoryEvaluator, params: {report: "%(report)s"}}
 connections:
@@ -109,15 +113,19 @@ class SyntheticMission(Source):
         return synthetic_mission(self.turns)
 
 
-def _timed(comp: Component, acc: dict[str, float], cpu: dict[str, float] | None = None) -> None:
+def _timed(comp: Component, acc: dict[str, float], cpu: dict[str, float] | None = None,
+           walls: list[float] | None = None) -> None:
     """Accumulate the wall time of ``comp.process`` into ``acc[comp.name]`` (and its thread
-    CPU time into ``cpu[comp.name]``: what a loaded machine does not inflate)."""
+    CPU time into ``cpu[comp.name]``: what a loaded machine does not inflate; each call's wall
+    time appended to ``walls``)."""
     inner = comp.process
 
     def process(t: int) -> None:
         t0, c0 = time.perf_counter(), time.thread_time()
         inner(t)
         acc[comp.name] = acc.get(comp.name, 0.0) + time.perf_counter() - t0
+        if walls is not None:
+            walls.append(time.perf_counter() - t0)
         if cpu is not None:
             cpu[comp.name] = cpu.get(comp.name, 0.0) + time.thread_time() - c0
 
@@ -130,6 +138,16 @@ STAGES = ("amplitude", "prepare", "coarse", "fine", "update")
 def _split(core, turns: int) -> dict[str, float]:  # type: ignore[no-untyped-def]
     """R-SLAM's thread CPU per stage (ms per turn): amplitude, prepare, coarse, fine, update."""
     return {f"{k}_cpu_ms_per_turn": 1e3 * core.split.get(k, 0.0) / max(1, turns) for k in STAGES}
+
+
+def _cpu_ms(split: dict[str, float]) -> float:
+    """R-SLAM's CPU per turn, every thread: the sum of its stages."""
+    return sum(split[f"{k}_cpu_ms_per_turn"] for k in STAGES)
+
+
+def _wall_median_ms(walls: list[float]) -> float:
+    """Median wall time of R-SLAM's calls (ms), its first turn (no map yet) left out."""
+    return 1e3 * float(np.median(walls[1:] or walls)) if walls else float("nan")
 
 
 def _split_line(split: dict[str, float]) -> str:
@@ -145,7 +163,7 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dict:
+def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1, threads: int = 2) -> dict:
     from importlib.metadata import entry_points
 
     from impala_flow.testing import plugin_of
@@ -159,25 +177,29 @@ def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1) -> dic
     if not synthetic and "radar.Simulator" not in session.registry.components:
         synthetic = True
     text = (GRAPH_SYNTH if synthetic else GRAPH_SIM) % {"turns": turns, "duration": float(turns) + 0.5,
-                                                        "report": report, "seed": seed}
+                                                        "report": report, "seed": seed, "threads": threads}
     net = session.build(session.load_text(text))
     acc: dict[str, float] = {}
     cpu: dict[str, float] = {}
+    walls: list[float] = []
     for c in net.components.values():
         if c.name != "mission":
-            _timed(c, acc, cpu)
+            _timed(c, acc, cpu, walls if c.name == "slam" else None)
     t0 = time.perf_counter()
     session.run(net, speed="max")
     wall = time.perf_counter() - t0
     slam, ev = net.components["slam"], net.components["eval"]
     n = max(1, slam.turns)
     f = ev.figures
+    split = _split(slam.core, n)
     return {
         "source": "synthetic" if synthetic else "radar.Simulator",
         "turns": slam.turns,
+        "rslam_threads": threads,
         "rslam_ms_per_turn": 1e3 * acc.get("slam", 0.0) / n,
-        "rslam_cpu_ms_per_turn": 1e3 * cpu.get("slam", 0.0) / n,
-        **_split(slam.core, n),
+        "rslam_wall_median_ms_per_turn": _wall_median_ms(walls),
+        "rslam_cpu_ms_per_turn": _cpu_ms(split),
+        **split,
         "rslam_match_ms_per_turn": 1e3 * slam.core.match_s / n,
         "rslam_update_ms_per_turn": 1e3 * slam.core.update_s / n,
         "chain_ms_per_turn": 1e3 * sum(acc.values()) / n,
@@ -261,39 +283,48 @@ def run_radiate(report: str) -> dict:
             "radiate_pairs": len(fwd)}
 
 
-def _run_graph(graph: str, mission: str | Path, out: Path, turns: int | None) -> tuple:
+def _run_graph(graph: str, mission: str | Path, out: Path, turns: int | None, overrides: tuple[str, ...] = (),
+               walls: list[float] | None = None) -> tuple:
     """Build graphs/GRAPH on ``mission`` as ``impala-flow run`` does (first ``turns`` turns at
-    4 Hz when given), time every component but the replayer (wall and thread CPU), run it."""
+    4 Hz when given, ``overrides`` as on its command line), time every component but the
+    replayer (wall and thread CPU; the wall time of each of slam's calls into ``walls``), run it."""
     out.mkdir(parents=True, exist_ok=True)
     session = Session()
-    spec = session.load(ROOT / "graphs" / graph, [f"mission.end_s={turns / 4.0}"] if turns else [],
+    spec = session.load(ROOT / "graphs" / graph, ([f"mission.end_s={turns / 4.0}"] if turns else []) + list(overrides),
                         variables={"mission": str(mission), "out": str(out)})
     net = session.build(spec)
     acc: dict[str, float] = {}
     cpu: dict[str, float] = {}
     for c in net.components.values():
         if c.name != "mission":
-            _timed(c, acc, cpu)
+            _timed(c, acc, cpu, walls if c.name == "slam" else None)
     session.run(net, speed="max")
     return net, acc, cpu
 
 
-def bench_radiate(mission_path: str | Path, turns: int | None = None, out: str | Path | None = None) -> dict:
+def bench_radiate(mission_path: str | Path, turns: int | None = None, out: str | Path | None = None,
+                  threads: int | None = None) -> dict:
     """R-SLAM through graphs/oxford.yaml on an imported RADIATE mission (e.g. the first 400 scans
     of the Edinburgh drive) beside kiss-icp through graphs/kiss_icp_navtech.yaml on the same
     scans: R-SLAM's CPU per turn and its split per stage, ATE (rigid alignment, as the graph's
     evaluator reports it), map size; kiss-icp's CPU per scan (slam.KissIcp, and with
-    radar.PeakExtractor that feeds it), its ATE; the peak RSS. ``turns``: only the first ones."""
+    radar.PeakExtractor that feeds it), its ATE; the peak RSS. ``turns``: only the first ones;
+    ``threads``: R-SLAM's (default: the graph's). R-SLAM's CPU is the sum of its stages on every
+    thread; its median wall time per call is ``rslam_radiate_wall_median_ms_per_turn``."""
     import tempfile
 
     base = Path(out) if out else Path(tempfile.mkdtemp(prefix="bench-rslam-radiate-"))
-    net, acc, cpu = _run_graph("oxford.yaml", mission_path, base / "rslam", turns)
+    walls: list[float] = []
+    net, acc, cpu = _run_graph("oxford.yaml", mission_path, base / "rslam", turns,
+                               (f"slam.threads={threads}",) if threads else (), walls)
     slam = net.components["slam"]
     n = max(1, slam.turns)
-    res: dict = {"rslam_radiate_turns": slam.turns,
-                 "rslam_radiate_ms_per_turn": 1e3 * cpu.get("slam", 0.0) / n,
+    split = _split(slam.core, n)
+    res: dict = {"rslam_radiate_turns": slam.turns, "rslam_radiate_threads": slam.threads,
+                 "rslam_radiate_ms_per_turn": _cpu_ms(split),
                  "rslam_radiate_wall_ms_per_turn": 1e3 * acc.get("slam", 0.0) / n,
-                 **{f"rslam_radiate_{k}": v for k, v in _split(slam.core, n).items()},
+                 "rslam_radiate_wall_median_ms_per_turn": _wall_median_ms(walls),
+                 **{f"rslam_radiate_{k}": v for k, v in split.items()},
                  "rslam_radiate_ate_m": net.components["eval"].figures.get("ate_rmse_m"),
                  "rslam_radiate_map_mb": slam.core.map.nbytes / 2 ** 20 if slam.core.map else 0.0,
                  "rslam_radiate_map_tiles_dropped": slam.core.map.dropped_tiles if slam.core.map else 0}
@@ -317,17 +348,20 @@ def main() -> None:
                     "beside kiss-icp (graphs/kiss_icp_navtech.yaml) on the same scans")
     ap.add_argument("--radiate-turns", type=int, default=0, help="only the first turns of --radiate (0: all)")
     ap.add_argument("--no-beynes", action="store_true", help="skip the simulated mission")
+    ap.add_argument("--threads", type=int, default=2, help="R-SLAM's threads (results bit-identical whatever)")
     args = ap.parse_args()
     out: dict = {}
     if not args.no_beynes:
-        out = run_mission(args.turns, args.synthetic, args.report, args.seed)
+        out = run_mission(args.turns, args.synthetic, args.report, args.seed, args.threads)
         for k, v in out.items():
             print(f"{k:28s} {v:.3f}" if isinstance(v, float) else f"{k:28s} {v}")
         print(_split_line(out))
-        out.update({"rslam_beynes_ms_per_turn": out["rslam_cpu_ms_per_turn"], "rslam_beynes_ate_m": out["ate_rmse_m"],
+        out.update({"rslam_beynes_ms_per_turn": out["rslam_cpu_ms_per_turn"],
+                    "rslam_beynes_wall_ms_per_turn": out["rslam_wall_median_ms_per_turn"],
+                    "rslam_beynes_ate_m": out["ate_rmse_m"],
                     "rslam_beynes_drift_pct": out["drift_pct"], "rslam_map_mb": out["map_mb"]})
     if args.radiate:
-        ra = bench_radiate(args.radiate, args.radiate_turns or None, args.report + "-radiate-drive")
+        ra = bench_radiate(args.radiate, args.radiate_turns or None, args.report + "-radiate-drive", args.threads)
         for k, v in ra.items():
             print(f"{k:40s} {v:.3f}" if isinstance(v, float) else f"{k:40s} {v}")
         print(_split_line({k.removeprefix("rslam_radiate_"): v for k, v in ra.items()}))

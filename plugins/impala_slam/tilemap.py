@@ -15,6 +15,7 @@ in every image outweighs one seen once); the per-cell layer then only marks the 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -132,6 +133,35 @@ class TileMap:
             np.add(ws, weighted_amplitude[win], out=ws, where=seen)  # cells not covered may hold NaN
             cnt = self.count[key][tile]
             np.add(cnt, cov, out=cnt, casting="unsafe")
+
+    def add_with(self, ix0: int, iy0: int, nx: int, ny: int,
+                 merge: Callable[[tuple[slice, slice], np.ndarray, np.ndarray], bool],
+                 run: Callable[[Callable, list], list] | None = None) -> None:
+        """Accumulate a window starting at map cell (ix0, iy0) through ``merge(win, ws, count)``,
+        called once per tile the window overlaps: it adds the window's part ``win`` (slices of
+        the window) into the tile's two layers (views of ``ws``, the sum of alpha A, and
+        ``count``, its normaliser) and returns whether it merged any cell; a tile created for
+        it is dropped when it did not (as :meth:`add` creates only the tiles it covers).
+        ``run(fn, items)`` (default: in turn) may run the merges on several threads: each
+        writes its own tile."""
+        n = self.tile_cells
+        parts, created = [], []
+        for key, win, tile in self._tiles(ix0, iy0, nx, ny):
+            if key not in self.count:
+                self.weighted_sum[key] = np.zeros((n, n), np.float32)
+                self.count[key] = np.zeros((n, n), np.float32)
+                created.append(key)
+            parts.append((key, win, tile))
+
+        def one(part: tuple) -> bool:
+            key, win, tile = part
+            return merge(win, self.weighted_sum[key][tile], self.count[key][tile])
+
+        merged = run(one, parts) if run is not None else [one(part) for part in parts]
+        touched = {key for (key, _, _), hit in zip(parts, merged, strict=True) if hit}
+        for key in created:
+            if key not in touched:
+                del self.weighted_sum[key], self.count[key]
 
     def crop(self, ix0: int, iy0: int, nx: int, ny: int) -> np.ndarray:
         """M(x, y) = sum_i alpha(d_i) A_i(x, y) / normaliser over a window (eq. 6); 0 where unmapped."""

@@ -46,7 +46,10 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -55,7 +58,7 @@ from impala_flow.msgs import Grid
 
 from ..se2 import between, compose, repeat
 from ..tilemap import TileMap, alpha_weight, warp_grid_to_map
-from .matching import MatchParams, match_to_map
+from .matching import MatchParams, _pmap, match_to_map
 
 __all__ = ["RSlamConfig", "RSlamCore"]
 
@@ -77,6 +80,7 @@ class RSlamConfig:
     db_floor_quantile: float = 0.001  # quantile of the observed cells taken as 0 dB when db_floor is 0
     map_update: str = "weighted"  # eq. (6) normaliser: "weighted" sum alpha, "paper" N images, "count" per cell
     map_max_mb: float = 0.0  # bound of the map's tiles (MiB): the farthest from the vehicle dropped; 0: none
+    threads: int = 1  # threads sharing a turn's rotations and warps (results bit-identical whatever the number)
 
 
 class RSlamCore:
@@ -95,6 +99,15 @@ class RSlamCore:
         self.split: dict[str, float] = {}
         self._alpha_key: tuple | None = None
         self._alpha_img = np.zeros((0, 0), np.float32)
+        # threads - 1 helpers: the calling thread always takes its share (close() ends them)
+        self._workers = max(0, int(self.cfg.threads) - 1)
+        self._pool = ThreadPoolExecutor(self._workers, "rslam") if self._workers else None
+
+    def close(self) -> None:
+        """End the helper threads (``threads`` > 1); the core then runs on the calling thread."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool, self._workers = None, 0
 
     # --- prediction ------------------------------------------------------------------
     def predict(self, t_ns: int, odom: Pose | None) -> Pose:
@@ -171,31 +184,44 @@ class RSlamCore:
         """Locate ``grid`` in the map and merge it; return (pose, 3x3 covariance, matched)."""
         if odom is None and grid.pose is not None:
             odom = (grid.pose.x_m, grid.pose.y_m, grid.pose.theta_rad)
-        c0 = time.thread_time()
-        grid = self.amplitude(grid)
-        self.split["amplitude"] = self.split.get("amplitude", 0.0) + time.thread_time() - c0
         if self.map is None:
+            grid = self._timed("amplitude", self.amplitude, grid)
             self.map = TileMap(self.cfg.map_cell_m or grid.cell_m, self.cfg.tile_m,
                                total_normaliser=self.cfg.map_update == "paper")
-            pose, cov, ok = (odom or (0.0, 0.0, 0.0)), np.zeros((3, 3)), True
-            self.last_prediction = pose
+            pose = self.last_prediction = odom or (0.0, 0.0, 0.0)
+            return self._merge(t_ns, grid, odom, pose, np.zeros((3, 3)), True)
+        # the dB image on a helper thread, when there is one, while the map windows are read
+        amp: Grid | Future = (self._pool.submit(self._timed, "amplitude", self.amplitude, grid) if self._pool
+                              else self._timed("amplitude", self.amplitude, grid))
+        pred = self.last_prediction = self.predict(t_ns, odom)
+        t0 = time.perf_counter()
+        m = match_to_map(self.map, amp, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns), self.split,
+                         self._pool, self._workers)
+        self.match_s += time.perf_counter() - t0
+        ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
+        if ok:
+            pose, cov = (m.x_m, m.y_m, m.theta_rad), m.cov_xyt
         else:
-            pred = self.last_prediction = self.predict(t_ns, odom)
-            t0 = time.perf_counter()
-            m = match_to_map(self.map, grid, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns), self.split)
-            self.match_s += time.perf_counter() - t0
-            ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
-            if ok:
-                pose, cov = (m.x_m, m.y_m, m.theta_rad), m.cov_xyt
-            else:
-                self.failures += 1
-                pose, cov = pred, np.diag([self.cfg.fallback_std_m ** 2] * 2 + [math.radians(1.0) ** 2])
-        t0, c0 = time.perf_counter(), time.thread_time()
-        self.update_map(grid, pose)
+            self.failures += 1
+            pose, cov = pred, np.diag([self.cfg.fallback_std_m ** 2] * 2 + [math.radians(1.0) ** 2])
+        return self._merge(t_ns, amp.result() if isinstance(amp, Future) else amp, odom, pose, cov, ok)
+
+    def _timed(self, stage: str, fn: Callable, *args: Any) -> Any:
+        """fn(*args), its thread CPU added to ``split[stage]``, whichever thread runs it (one
+        stage is never added to by two threads at once)."""
+        c0 = time.thread_time()
+        out = fn(*args)
+        self.split[stage] = self.split.get(stage, 0.0) + time.thread_time() - c0
+        return out
+
+    def _merge(self, t_ns: int, grid: Grid, odom: Pose | None, pose: Pose, cov: np.ndarray,
+               ok: bool) -> tuple[Pose, np.ndarray, bool]:
+        """Merge the turn's dB image into the map at ``pose`` and record it."""
+        t0 = time.perf_counter()
+        self._timed("update", self.update_map, grid, pose)
         if self.cfg.map_max_mb > 0:
             self.map.bound(int(self.cfg.map_max_mb * 2 ** 20), pose[0], pose[1])
         self.update_s += time.perf_counter() - t0
-        self.split["update"] = self.split.get("update", 0.0) + time.thread_time() - c0
         self.poses.append((t_ns, pose))
         self._last_odom = odom
         return pose, cov, ok
@@ -233,9 +259,24 @@ class RSlamCore:
         # float64 bilinear on Beynes) where its 2-channel warp, twice as slow, rounds them to 1/32 of
         # a cell (0.012 dB RMS, up to 0.87 dB). A cell is covered where the amplitude is defined (NaN
         # outside the panoramic) and alpha > 0: TileMap.add merges only those
-        amp = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m)
-        alpha = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, 0.0, data=self._alpha_image(grid))
-        np.copyto(alpha, np.float32(0.0), where=np.isnan(amp))
-        weighted = np.multiply(alpha, amp, out=amp)  # NaN where not covered: masked by alpha = 0
-        tm.add(ix0, iy0, weighted, alpha if self.cfg.map_update == "weighted" else alpha > 0)
+        alpha_img = self._alpha_image(grid)
+        if self._pool is not None:  # the two warps side by side (each the same call on its own data)
+            job = self._pool.submit(self._timed, "update", warp_grid_to_map, grid, pose, ix0, iy0, n, n,
+                                    tm.cell_m, 0.0, alpha_img)
+            amp = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m)
+            alpha = job.result()
+        else:
+            amp = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m)
+            alpha = warp_grid_to_map(grid, pose, ix0, iy0, n, n, tm.cell_m, 0.0, data=alpha_img)
+        from ._jit import merge_tile  # numba: loaded at the first update, not with the plugin
+
+        weighted = self.cfg.map_update == "weighted"
+        tm.add_with(ix0, iy0, n, n, lambda win, ws, cnt: merge_tile(amp[win], alpha[win], ws, cnt, weighted),
+                    self._run)
         tm.images += 1
+
+    def _run(self, fn: Callable, items: list) -> list:
+        """[fn(x) for x in items], shared with the helper threads (each item its own data)."""
+        out, cpu = _pmap(self._pool, self._workers, fn, items)
+        self.split["update"] = self.split.get("update", 0.0) + cpu
+        return out

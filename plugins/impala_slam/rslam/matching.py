@@ -23,6 +23,12 @@ width (seed 1, after eq. 5): a Gaussian of the same curvature and height ``h`` a
 background has ``sigma^2 = h / |C''|``, i.e. the covariance ``h (-H)^-1`` with ``H`` the
 Hessian of the correlation at the peak.
 
+With a thread pool (R-SLAM's ``threads``), the rotations of each level are shared among the
+threads, the fine panoramic is prepared and the fine templates transformed on a helper while
+the calling thread prepares the map windows (:func:`match_to_map`): every piece is the same
+computation on the same data whichever thread runs it, so the poses are bit-identical to one
+thread's.
+
 Both images are lightly smoothed (``smooth_m``, at least 0.6 cell) and reduced to their
 local contrast over ``contrast_m`` (3 m: it removes the R^-4 trend and the level of each
 kind of clutter, keeping bushes, trees and walls against the grass). They are expected on a
@@ -37,6 +43,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 
 import cv2
@@ -139,8 +146,9 @@ def _prepared(grid: Grid, cell_m: float, contrast_cells: int, smooth_cells: floa
 
 class _MapCrop:
     """M and its support (:meth:`TileMap.crop_with_support`) over one region of the map, read
-    once per turn: the coarse and the fine windows are copies of parts of it (a window outside
-    it is read from the map)."""
+    once per turn: the coarse and the fine windows are read-only views of parts of it (a window
+    outside it is read from the map; OpenCV sees a view as a whole image, so its borders are the
+    same as a copy's)."""
 
     def __init__(self, tilemap: TileMap) -> None:
         self.tilemap = tilemap
@@ -156,7 +164,7 @@ class _MapCrop:
         if i < 0 or j < 0 or i + ny > self.ny or j + nx > self.nx:
             self.read(ix0, iy0, nx, ny)
             return self.m, self.sup
-        return self.m[i:i + ny, j:j + nx].copy(), self.sup[i:i + ny, j:j + nx].copy()
+        return self.m[i:i + ny, j:j + nx], self.sup[i:i + ny, j:j + nx]  # views: the callers only read them
 
 
 def _coarse_window(cell: float, f: int, x_p: float, y_p: float, p: MatchParams,
@@ -244,6 +252,44 @@ def _scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.
     return a
 
 
+class _Shared:
+    """[fn(x) for x in items] computed by up to ``workers`` threads of ``pool``, which start at
+    once, and by the calling thread from :meth:`join` on: each takes the next item until none is
+    left. Every item is the same computation on its own data whichever thread takes it, so the
+    results are bit-identical to ``pool=None`` (all on the calling thread)."""
+
+    def __init__(self, pool: Executor | None, workers: int, fn: Callable, items: list) -> None:
+        self.fn, self.items = fn, items
+        self.out: list = [None] * len(items)
+        self._order = iter(range(len(items)))
+        self._lock = threading.Lock()
+        n = min(workers, len(items)) if pool is not None else 0
+        self._futures = [pool.submit(self._work) for _ in range(n)] if pool is not None else []
+
+    def _work(self) -> float:
+        c0 = time.thread_time()
+        while True:
+            with self._lock:
+                i = next(self._order, None)
+            if i is None:
+                return time.thread_time() - c0
+            self.out[i] = self.fn(self.items[i])
+
+    def join(self) -> tuple[list, float]:
+        """(the results in the items' order, the thread CPU seconds the pool's threads spent)."""
+        self._work()
+        return self.out, sum(f.result() for f in self._futures)
+
+
+def _pmap(pool: Executor | None, workers: int, fn: Callable, items: list) -> tuple[list, float]:
+    """:class:`_Shared` with the calling thread taking its share at once."""
+    return _Shared(pool, min(workers, len(items) - 1), fn, items).join()
+
+
+def _resolved(grid: Grid | Future) -> Grid:
+    return grid.result() if isinstance(grid, Future) else grid
+
+
 class _Correlator:
     """eq. (5) normalised (``TM_CCORR_NORMED``) of many templates against one map window.
 
@@ -257,7 +303,8 @@ class _Correlator:
     The normalisation follows OpenCV's (num / (sqrt(window energy) |T|), +-1
     between 1 and 1.125 of it, 0 beyond), so the surface equals matchTemplate's to float32
     rounding. Its work arrays are per-thread scratch (:func:`_scratch`): a correlator is used
-    up before the next one of the same DFT size is made on its thread."""
+    up before the next one of the same DFT size is made on its thread, and its templates may be
+    correlated on several threads at once (each has its own template buffer)."""
 
     def __init__(self, window: np.ndarray, m: int) -> None:
         n = window.shape[0]
@@ -271,7 +318,6 @@ class _Correlator:
         pad[:n, :n] = window
         pad[n:], pad[:n, n:] = 0.0, 0.0
         self.spectrum = cv2.dft(pad, dst=_scratch("window spectrum", (size, size)))
-        self._buf = np.zeros((size, size), np.float32)
         sq = np.square(window, dtype=np.float64, out=_scratch("square", (n, n), np.float64))
         sq = cv2.integral(sq, sum=_scratch("integral", (n + 1, n + 1), np.float64))
         k = self.k
@@ -280,15 +326,17 @@ class _Correlator:
     def __call__(self, prepared: Grid, theta_rad: float, disk: np.ndarray) -> np.ndarray:
         """C(i, j) of the template P_k (:func:`_template`) with its top-left corner at window
         cell (i, j), float32 k x k."""
-        k, m = self.k, self.m
         if self.empty:
+            return np.zeros((self.k, self.k), np.float32)
+        return self.surface(*_template_spectrum(prepared, theta_rad, disk, self.size))
+
+    def surface(self, spectrum: np.ndarray | None, norm: float) -> np.ndarray:
+        """C(i, j) of a template given by its spectrum and norm (:func:`_template_spectrum`, on
+        this correlator's DFT size)."""
+        k = self.k
+        if self.empty or spectrum is None:
             return np.zeros((k, k), np.float32)
-        buf = self._buf
-        _template(prepared, theta_rad, disk, out=buf[:m, :m])
-        norm = cv2.norm(buf[:m, :m])  # L2, accumulated in double
-        if norm == 0.0:
-            return np.zeros((k, k), np.float32)
-        prod = cv2.mulSpectrums(self.spectrum, cv2.dft(buf), 0, conjB=True)
+        prod = cv2.mulSpectrums(self.spectrum, spectrum, 0, conjB=True)
         num = cv2.idft(prod, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)[:k, :k].astype(np.float64)
         den = np.sqrt(np.maximum(self.energy, 0.0)) * norm
         out = np.zeros((k, k), np.float64)
@@ -299,44 +347,66 @@ class _Correlator:
         return out.astype(np.float32)
 
 
+def _template_spectrum(prepared: Grid, theta_rad: float, disk: np.ndarray,
+                       size: int) -> tuple[np.ndarray | None, float]:
+    """(DFT on ``size`` x ``size`` cells, L2 norm) of the template P_k (:func:`_template`); no
+    spectrum when the template is all zero. It does not depend on the map window: the templates
+    of a level can be transformed while its window is being prepared."""
+    m = disk.shape[0]
+    buf = _scratch("template", (size, size))  # per thread: the rotations may run on two
+    buf[m:], buf[:m, m:] = 0.0, 0.0
+    _template(prepared, theta_rad, disk, out=buf[:m, :m])
+    norm = cv2.norm(buf[:m, :m])  # L2, accumulated in double
+    return (cv2.dft(buf) if norm != 0.0 else None), norm
+
+
 def _lap(split: dict[str, float] | None, stage: str, seconds: float) -> None:
     if split is not None:
         split[stage] = split.get(stage, 0.0) + seconds
 
 
-def _coarse(crops: _MapCrop, grid: Grid, pred_xyt: tuple[float, float, float], p: MatchParams, f: int,
+def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, float], p: MatchParams, f: int,
             rot_span_deg: float, rot_step_deg: float, search_m: float,
             weight: Callable[[np.ndarray], np.ndarray] | None,
-            split: dict[str, float] | None = None) -> tuple[float, float, float, float, bool]:
+            split: dict[str, float] | None = None, pool: Executor | None = None,
+            workers: int = 0) -> tuple[float, float, float, float, bool, int]:
     """Every rotation of the span, the whole window, on cells of ``f`` map cells:
-    (x, y, theta) of the best peak, the median of its surface, whether it is on the border."""
+    (x, y, theta) of the best peak, the median of its surface, whether it is on the border, and
+    the side (+-1) of theta the parabola through the best three rotations' peaks leans to.
+    The rotations are shared with ``workers`` threads of ``pool`` (:func:`_pmap`)."""
     t0 = time.thread_time()
     x_p, y_p, th_p = pred_xyt
     a, cc, h_c, s_c, ix0, iy0, n_c = _coarse_window(crops.tilemap.cell_m, f, x_p, y_p, p, search_m)
     k_c = int(round(p.contrast_m / cc))
     sm_c = max(_SMOOTH_CELLS, p.smooth_m / cc)
     crop_c = _map_window(crops, ix0, iy0, n_c, f, k_c, sm_c)
-    coarse = _prepared(grid, cc, k_c, sm_c, h_c + 1)
     disk_c = _disk(h_c, cc, weight)
+    corr = _Correlator(crop_c, disk_c.shape[0])  # the map's side first: the panoramic may still be in the making
+    coarse = _prepared(_resolved(grid), cc, k_c, sm_c, h_c + 1)
     n_rot = int(round(rot_span_deg / rot_step_deg))
     step = math.radians(rot_step_deg)
     thetas = th_p + step * np.arange(-n_rot, n_rot + 1)
-    corr = _Correlator(crop_c, disk_c.shape[0])
     t1 = time.thread_time()
-    surfaces = [corr(coarse, th, disk_c) for th in thetas]
+    surfaces, cpu = _pmap(pool, workers, lambda th: corr(coarse, th, disk_c), list(thetas))
     peaks = np.array([s.max() for s in surfaces])
     k = int(np.argmax(peaks))
     surf = surfaces[k]
     i, j = np.unravel_index(int(np.argmax(surf)), surf.shape)
     on_edge = i in (0, surf.shape[0] - 1) or j in (0, surf.shape[1] - 1)
     _lap(split, "prepare", t1 - t0)
-    _lap(split, "coarse", time.thread_time() - t1)
-    return a + (ix0 + j + h_c) * cc, a + (iy0 + i + h_c) * cc, float(thetas[k]), float(np.median(surf)), on_edge
+    _lap(split, "coarse", time.thread_time() - t1 + cpu)
+    # the side of the coarse rotation the coarse peaks' parabola leans to (+1 or -1)
+    side = 1 if 0 < k < len(peaks) - 1 and _parabola(peaks[k - 1], peaks[k], peaks[k + 1])[0] >= 0.0 else -1
+    if k == len(peaks) - 1:
+        side = 1
+    return (a + (ix0 + j + h_c) * cc, a + (iy0 + i + h_c) * cc, float(thetas[k]), float(np.median(surf)), on_edge,
+            side)
 
 
-def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, float], p: MatchParams,
+def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, float, float], p: MatchParams,
                  weight: Callable[[np.ndarray], np.ndarray] | None = None, widen: float = 1.0,
-                 split: dict[str, float] | None = None) -> MatchResult:
+                 split: dict[str, float] | None = None, pool: Executor | None = None,
+                 workers: int = 0) -> MatchResult:
     """Pose of the panoramic ``grid`` in the map by 3-D correlation around ``pred_xyt`` (eq. 5).
 
     ``widen`` > 1 (the prediction spans that many ordinary intervals: turns missing from
@@ -348,21 +418,39 @@ def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, flo
 
     ``split``, when given, accumulates the thread CPU seconds of each stage: ``prepare``
     (map windows, prepared panoramics, window DFTs), ``coarse`` (the rotations of the coarse
-    level, with the widened search) and ``fine`` (the rotations at the map's cells, peak)."""
+    level, with the widened search) and ``fine`` (the rotations at the map's cells, peak), the
+    CPU of ``pool``'s threads included.
+
+    ``pool`` (with ``workers`` threads for this call): the rotations of each level are shared
+    among the calling thread and those (:class:`_Shared`), the fine panoramic is prepared on one
+    of them during the coarse level and the fine templates are transformed there while the fine
+    map window is prepared. ``grid`` may be a future (its dB image being computed on the pool):
+    the map windows are read first. Each piece of work is the same computation on the same data
+    whichever thread runs it: the result is bit-identical to ``pool=None``."""
     if not p.weight_template:
         weight = None
     cell = tilemap.cell_m
     f = max(1, int(round(p.match_cell_m / cell)))
     step = math.radians(p.rot_step_deg)
+    h_f = int(math.ceil(p.match_range_m / cell))
+    k_f = int(round(p.contrast_m / cell))
+    sm_f = max(_SMOOTH_CELLS, p.smooth_m / cell)
+    fine_job = None
+    if pool is not None and workers >= 1:  # the fine panoramic does not depend on the coarse peak
+
+        def prepare_fine() -> tuple[Grid, float]:
+            c0 = time.thread_time()
+            return _prepared(_resolved(grid), cell, k_f, sm_f, h_f + 1), time.thread_time() - c0
+
+        fine_job = pool.submit(prepare_fine)
     crops = _MapCrop(tilemap)
     if widen > 1.0:
-        x_w, y_w, th_w, _, edge_w = _coarse(crops, grid, pred_xyt, p, 2 * f, widen * p.rot_span_deg,
-                                            2.0 * p.rot_step_deg, p.search_m, weight, split)
+        x_w, y_w, th_w, _, edge_w, _ = _coarse(crops, grid, pred_xyt, p, 2 * f, widen * p.rot_span_deg,
+                                            2.0 * p.rot_step_deg, p.search_m, weight, split, pool, workers)
         if not edge_w:
             pred_xyt = (x_w, y_w, th_w)
     # the map is read once over the coarse window and every fine window its peak can lead to
     t0 = time.thread_time()
-    h_f = int(math.ceil(p.match_range_m / cell))
     s_f = f + 2
     n_f = 2 * (h_f + s_f) + 1
     a, cc, h_c, s_c, ix0, iy0, n_c = _coarse_window(cell, f, pred_xyt[0], pred_xyt[1], p, p.search_m)
@@ -372,25 +460,38 @@ def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, flo
           for i0 in (ix0, iy0)]
     crops.read(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
     _lap(split, "prepare", time.thread_time() - t0)
-    x_c, y_c, th_c, base, on_edge = _coarse(crops, grid, pred_xyt, p, f, p.rot_span_deg, p.rot_step_deg,
-                                            p.search_m, weight, split)
+    # the worker prepares the fine panoramic first, then joins the coarse rotations
+    x_c, y_c, th_c, base, on_edge, side = _coarse(crops, grid, pred_xyt, p, f, p.rot_span_deg, p.rot_step_deg,
+                                            p.search_m, weight, split, pool, workers)
     t0 = time.thread_time()
 
     # --- fine: rotations within one coarse step at the map's own cells; parabolas -----------
     fx0 = int(round(x_c / cell)) - h_f - s_f
     fy0 = int(round(y_c / cell)) - h_f - s_f
-    k_f = int(round(p.contrast_m / cell))
-    sm_f = max(_SMOOTH_CELLS, p.smooth_m / cell)
-    crop = _map_window(crops, fx0, fy0, n_f, 1, k_f, sm_f)
-    fine = _prepared(grid, cell, k_f, sm_f, h_f + 1)
     disk_f = _disk(h_f, cell, weight)
     delta = step / 2.0
+    if fine_job is None:
+        fine, cpu_prep = _prepared(_resolved(grid), cell, k_f, sm_f, h_f + 1), 0.0
+    else:
+        fine, cpu_prep = fine_job.result()  # done: the worker took it before the coarse rotations
+    # the three middle rotations are always needed (the climb below starts there): their templates
+    # are transformed by the pool while this thread prepares the map window. With a pool, the
+    # rotation the climb most often takes next (2 half steps towards the side the coarse peaks
+    # lean to: 39 turns in 40 on Beynes climb) is computed with them, 4 correlations on 2 threads
+    # in 2 rounds instead of 3 + 1 in 3 (a wrong guess costs one correlation, not the result)
+    size_f = _dft_size(n_f)
+    qs = [-1, 0, 1] if pool is None or workers < 1 else [-1, 0, 1, 2 * side]
+    specs = _Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f), qs)
+    crop = _map_window(crops, fx0, fy0, n_f, 1, k_f, sm_f)
     corr = _Correlator(crop, disk_f.shape[0])
     t1 = time.thread_time()
-    _lap(split, "prepare", t1 - t0)
+    _lap(split, "prepare", t1 - t0 + cpu_prep)
     # climb from the coarse rotation by half steps, at most 2 each way: the 5 rotations of the
     # span are not all needed when the peak (the usual case) is within the middle three
-    surfaces: dict[int, np.ndarray] = {}
+    first, cpu_spec = specs.join()
+    first, cpu = _pmap(pool, workers, lambda sp: corr.surface(*sp), first)
+    cpu += cpu_spec
+    surfaces: dict[int, np.ndarray] = dict(zip(qs, first, strict=True))
 
     def peak(q: int) -> float:
         if q not in surfaces:
@@ -430,5 +531,5 @@ def match_to_map(tilemap: TileMap, grid: Grid, pred_xyt: tuple[float, float, flo
         cov[:2, :2] = np.eye(2) * (p.search_m ** 2)
     cov[2, 2] = height / (-d2th) * delta * delta if d2th < 0 else math.radians(p.rot_span_deg) ** 2
     valid = bool(not on_edge and c0 >= p.min_score and np.isfinite(c0))
-    _lap(split, "fine", time.thread_time() - t1)
+    _lap(split, "fine", time.thread_time() - t1 + cpu)
     return MatchResult(float(x), float(y), float(theta), cov, c0, valid)

@@ -1,0 +1,89 @@
+"""R-SLAM on several threads (``threads``) and its compiled map merge give the same bits as on
+one thread and as the numpy formulation they replace."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from impala_slam.rslam._jit import merge_tile
+from impala_slam.rslam.component import RSlam
+from impala_slam.rslam.core import RSlamConfig, RSlamCore
+from impala_slam.synthetic import SyntheticWorld
+from impala_slam.tilemap import TileMap
+
+cv2.setNumThreads(1)
+
+
+@pytest.mark.parametrize("weighted", [True, False])
+def test_the_compiled_merge_equals_the_masked_numpy_add(weighted):
+    """Eq. (6)'s accumulation as R-SLAM wrote it before (alpha zeroed where the amplitude is
+    NaN, alpha A, TileMap.add's masked add) against TileMap.add_with + merge_tile: the same
+    tiles, bit for bit, over a window crossing tile borders, with NaN and alpha = 0 cells
+    and a tile the window only touches where nothing is covered (not created by either)."""
+    rng = np.random.default_rng(5)
+    n = 150
+    amp = (rng.random((n, n)) * 40.0).astype(np.float32)
+    amp[:, :30] = np.nan
+    amp[rng.random((n, n)) < 0.05] = np.nan
+    alpha = rng.random((n, n)).astype(np.float32)
+    alpha[rng.random((n, n)) < 0.2] = 0.0
+    alpha[-20:] = 0.0  # the window's last rows cover nothing
+    old, new = TileMap(0.2, tile_m=8.0), TileMap(0.2, tile_m=8.0)  # 40-cell tiles
+    for k, (ix0, iy0) in enumerate([(-37, -15), (-20, -17), (-37, -15)]):
+        a = alpha.copy()
+        m = amp.copy()
+        np.copyto(a, np.float32(0.0), where=np.isnan(m))
+        w = np.multiply(a, m, out=m)
+        old.add(ix0, iy0 + k, w, a if weighted else a > 0)
+        new.add_with(ix0, iy0 + k, n, n, lambda win, ws, cnt: merge_tile(amp[win], alpha[win], ws, cnt, weighted))
+    assert sorted(old.count) == sorted(new.count)
+    assert len(new.count) == 20 and not any(ty == 3 for _, ty in new.count)  # rows 120-: alpha = 0 there
+    for key in old.count:
+        assert np.array_equal(old.weighted_sum[key], new.weighted_sum[key])
+        assert np.array_equal(old.count[key], new.count[key])
+
+
+def _run(threads: int, world: SyntheticWorld) -> tuple[list, RSlamCore]:
+    """A 14-turn drive with a bend and a missing second (the widened search), no odometry."""
+    rng = np.random.default_rng(11)
+    core = RSlamCore(RSlamConfig(range_max_m=45.0, db_floor_quantile=0.5, threads=threads))
+    core.cfg.match.match_range_m = 40.0
+    out, t, pose = [], 0, (0.0, 0.0, 0.0)
+    for k in range(14):
+        t += 250_000_000 if k != 9 else 1_250_000_000
+        dt = 0.25 if k != 9 else 1.25
+        pose = (pose[0] + 6.0 * dt * math.cos(pose[2]), pose[1] + 6.0 * dt * math.sin(pose[2]), pose[2] + 0.1 * dt)
+        p, cov, ok = core.step(t, world.render(pose, rng, radius_m=45.0))
+        out.append((p, cov.copy(), ok))
+    core.close()
+    return out, core
+
+
+def test_threads_give_the_same_poses_and_map_bit_for_bit():
+    world = SyntheticWorld.random(np.random.default_rng(7), (-60, 140), (-80, 120), 0.03, 3)
+    (one, c1), (two, c2), (three, c3) = (_run(n, world) for n in (1, 2, 3))
+    assert all(ok for _, _, ok in one)  # a sane run: every turn matched, the one after the gap too
+    for other, core in ((two, c2), (three, c3)):
+        for (p, cov, ok), (q, cov2, ok2) in zip(one, other, strict=True):
+            assert p == q and ok == ok2 and np.array_equal(cov, cov2)
+        assert sorted(core.map.count) == sorted(c1.map.count)
+        for key in c1.map.count:
+            assert np.array_equal(core.map.weighted_sum[key], c1.map.weighted_sum[key])
+            assert np.array_equal(core.map.count[key], c1.map.count[key])
+    # the split counts the helper's CPU: every stage was timed
+    assert set(c2.split) == {"amplitude", "prepare", "coarse", "fine", "update"}
+    assert all(v > 0 for v in c2.split.values())
+
+
+def test_the_component_bounds_threads_and_ends_its_helpers():
+    with pytest.raises(ValueError):
+        RSlam("slam", threads=0)
+    with pytest.raises(ValueError):
+        RSlam("slam", threads=9)
+    slam = RSlam("slam")
+    slam.start()
+    assert slam.threads == 2 and slam.core._workers == 1
+    slam.stop()
+    assert slam.core._pool is None and slam.core._workers == 0
