@@ -58,7 +58,7 @@ from impala_flow.msgs import Grid
 
 from ..se2 import between, compose, repeat
 from ..tilemap import TileMap, alpha_weight, warp_grid_to_map
-from .matching import MatchParams, _pmap, match_to_map
+from .matching import MatchParams, match_to_map, shared_map
 
 __all__ = ["RSlamConfig", "RSlamCore"]
 
@@ -277,6 +277,6 @@ class RSlamCore:
 
     def _run(self, fn: Callable, items: list) -> list:
         """[fn(x) for x in items], shared with the helper threads (each item its own data)."""
-        out, cpu = _pmap(self._pool, self._workers, fn, items)
+        out, cpu = shared_map(self._pool, self._workers, fn, items)
         self.split["update"] = self.split.get("update", 0.0) + cpu
         return out

@@ -55,7 +55,7 @@ from ..tilemap import TileMap, warp_grid_to_map
 
 _SMOOTH_CELLS = 0.6  # Gaussian sigma applied before rotating (cells)
 
-__all__ = ["MatchParams", "MatchResult", "match_to_map", "contrast", "downsample_grid"]
+__all__ = ["MatchParams", "MatchResult", "match_to_map", "contrast", "downsample_grid", "shared_map"]
 
 
 @dataclass
@@ -281,8 +281,11 @@ class _Shared:
         return self.out, sum(f.result() for f in self._futures)
 
 
-def _pmap(pool: Executor | None, workers: int, fn: Callable, items: list) -> tuple[list, float]:
-    """:class:`_Shared` with the calling thread taking its share at once."""
+def shared_map(pool: Executor | None, workers: int, fn: Callable, items: list) -> tuple[list, float]:
+    """[fn(x) for x in items] shared among the calling thread and up to ``workers`` threads of
+    ``pool`` (:class:`_Shared`, the calling thread taking its share at once), with the thread
+    CPU seconds the pool's threads spent; bit-identical to ``pool=None`` when each item is
+    computed on its own data."""
     return _Shared(pool, min(workers, len(items) - 1), fn, items).join()
 
 
@@ -373,7 +376,7 @@ def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, 
     """Every rotation of the span, the whole window, on cells of ``f`` map cells:
     (x, y, theta) of the best peak, the median of its surface, whether it is on the border, and
     the side (+-1) of theta the parabola through the best three rotations' peaks leans to.
-    The rotations are shared with ``workers`` threads of ``pool`` (:func:`_pmap`)."""
+    The rotations are shared with ``workers`` threads of ``pool`` (:func:`shared_map`)."""
     t0 = time.thread_time()
     x_p, y_p, th_p = pred_xyt
     a, cc, h_c, s_c, ix0, iy0, n_c = _coarse_window(crops.tilemap.cell_m, f, x_p, y_p, p, search_m)
@@ -387,7 +390,7 @@ def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, 
     step = math.radians(rot_step_deg)
     thetas = th_p + step * np.arange(-n_rot, n_rot + 1)
     t1 = time.thread_time()
-    surfaces, cpu = _pmap(pool, workers, lambda th: corr(coarse, th, disk_c), list(thetas))
+    surfaces, cpu = shared_map(pool, workers, lambda th: corr(coarse, th, disk_c), list(thetas))
     peaks = np.array([s.max() for s in surfaces])
     k = int(np.argmax(peaks))
     surf = surfaces[k]
@@ -489,7 +492,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     # climb from the coarse rotation by half steps, at most 2 each way: the 5 rotations of the
     # span are not all needed when the peak (the usual case) is within the middle three
     first, cpu_spec = specs.join()
-    first, cpu = _pmap(pool, workers, lambda sp: corr.surface(*sp), first)
+    first, cpu = shared_map(pool, workers, lambda sp: corr.surface(*sp), first)
     cpu += cpu_spec
     surfaces: dict[int, np.ndarray] = dict(zip(qs, first, strict=True))
 
