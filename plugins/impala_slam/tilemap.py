@@ -39,9 +39,11 @@ def alpha_weight(distance_m: np.ndarray, aperture_rad: float, resolution_m: floa
 
 def warp_grid_to_map(grid: Grid, pose_xyt: tuple[float, float, float], ix0: int, iy0: int,
                      nx: int, ny: int, cell_m: float, border: float = np.nan,
-                     data: np.ndarray | None = None) -> np.ndarray:
+                     data: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """Resample ``grid`` (vehicle frame, radar at its origin) placed at ``pose_xyt`` onto the
-    map cells ``ix0 .. ix0+nx-1`` x ``iy0 .. iy0+ny-1`` (bilinear); ``border`` outside it."""
+    map cells ``ix0 .. ix0+nx-1`` x ``iy0 .. iy0+ny-1`` (bilinear); ``border`` outside it.
+    ``data`` replaces the grid's values; ``out`` (float32 ny x nx, a view of rows of a larger
+    array too) receives the result instead of a new array."""
     x, y, th = pose_xyt
     c, s = math.cos(th), math.sin(th)
     k = cell_m / grid.cell_m
@@ -52,8 +54,12 @@ def warp_grid_to_map(grid: Grid, pose_xyt: tuple[float, float, float], ix0: int,
         [-k * s, k * c, (-s * dx + c * dy - grid.origin_y_m) / grid.cell_m],
     ])
     src = np.asarray(grid.data if data is None else data, dtype=np.float32)
-    return cv2.warpAffine(src, mat, (nx, ny), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=float(border))
+    res = cv2.warpAffine(src, mat, (nx, ny), out, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=float(border))
+    if out is not None and res is not out and not np.shares_memory(res, out):  # OpenCV wrote elsewhere
+        out[...] = res
+        return out
+    return res
 
 
 class TileMap:

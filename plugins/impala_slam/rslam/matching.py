@@ -195,8 +195,8 @@ def _template(prepared: Grid, theta_rad: float, disk: np.ndarray, out: np.ndarra
     the radar, cut to the matching disk and weighted like the map (into ``out`` if given)."""
     half = disk.shape[0] // 2
     t = warp_grid_to_map(prepared, (0.0, 0.0, theta_rad), -half, -half, 2 * half + 1, 2 * half + 1,
-                         prepared.cell_m, 0.0)
-    return np.multiply(t, disk, out=out)
+                         prepared.cell_m, 0.0, out=out)
+    return np.multiply(t, disk, out=t)
 
 
 @functools.lru_cache(maxsize=8)
@@ -335,12 +335,15 @@ class _Correlator:
 
     def surface(self, spectrum: np.ndarray | None, norm: float) -> np.ndarray:
         """C(i, j) of a template given by its spectrum and norm (:func:`_template_spectrum`, on
-        this correlator's DFT size)."""
+        this correlator's DFT size; the spectrum is overwritten)."""
         k = self.k
         if self.empty or spectrum is None:
             return np.zeros((k, k), np.float32)
-        prod = cv2.mulSpectrums(self.spectrum, spectrum, 0, conjB=True)
-        num = cv2.idft(prod, flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)[:k, :k].astype(np.float64)
+        # the product over the template's spectrum, the inverse into this thread's template buffer:
+        # fresh arrays cost page faults, more work arrays cache misses (0.1-1 ms per rotation)
+        prod = cv2.mulSpectrums(self.spectrum, spectrum, 0, spectrum, conjB=True)
+        num = cv2.idft(prod, _scratch("template", (self.size, self.size)),
+                       flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)[:k, :k].astype(np.float64)
         den = np.sqrt(np.maximum(self.energy, 0.0)) * norm
         out = np.zeros((k, k), np.float64)
         inside = np.abs(num) < den
@@ -350,17 +353,19 @@ class _Correlator:
         return out.astype(np.float32)
 
 
-def _template_spectrum(prepared: Grid, theta_rad: float, disk: np.ndarray,
-                       size: int) -> tuple[np.ndarray | None, float]:
+def _template_spectrum(prepared: Grid, theta_rad: float, disk: np.ndarray, size: int,
+                       slot: str = "") -> tuple[np.ndarray | None, float]:
     """(DFT on ``size`` x ``size`` cells, L2 norm) of the template P_k (:func:`_template`); no
     spectrum when the template is all zero. It does not depend on the map window: the templates
-    of a level can be transformed while its window is being prepared."""
+    of a level can be transformed while its window is being prepared. The spectrum is this
+    thread's work array ``slot`` (:func:`_scratch`: a fresh 1.6 MB array per rotation cost its
+    page faults, 0.5-1 ms): it holds until the next spectrum of that slot on this thread."""
     m = disk.shape[0]
     buf = _scratch("template", (size, size))  # per thread: the rotations may run on two
     buf[m:], buf[:m, m:] = 0.0, 0.0
     _template(prepared, theta_rad, disk, out=buf[:m, :m])
     norm = cv2.norm(buf[:m, :m])  # L2, accumulated in double
-    return (cv2.dft(buf) if norm != 0.0 else None), norm
+    return (cv2.dft(buf, _scratch("template spectrum " + slot, (size, size))) if norm != 0.0 else None), norm
 
 
 def _lap(split: dict[str, float] | None, stage: str, seconds: float) -> None:
@@ -482,18 +487,26 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     # rotation the climb most often takes next (2 half steps towards the side the coarse peaks
     # lean to: 39 turns in 40 on Beynes climb) is computed with them, 4 correlations on 2 threads
     # in 2 rounds instead of 3 + 1 in 3 (a wrong guess costs one correlation, not the result)
+    # (on one thread each template is correlated as soon as it is transformed: its spectrum is
+    # still in the cache, 1 ms per rotation cheaper than from memory)
     size_f = _dft_size(n_f)
-    qs = [-1, 0, 1] if pool is None or workers < 1 else [-1, 0, 1, 2 * side]
-    specs = _Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f), qs)
+    threaded = pool is not None and workers >= 1
+    qs = [-1, 0, 1, 2 * side] if threaded else [-1, 0, 1]
+    if threaded:
+        specs = _Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f, str(q)),
+                        qs)
     crop = _map_window(crops, fx0, fy0, n_f, 1, k_f, sm_f)
     corr = _Correlator(crop, disk_f.shape[0])
     t1 = time.thread_time()
     _lap(split, "prepare", t1 - t0 + cpu_prep)
     # climb from the coarse rotation by half steps, at most 2 each way: the 5 rotations of the
     # span are not all needed when the peak (the usual case) is within the middle three
-    first, cpu_spec = specs.join()
-    first, cpu = shared_map(pool, workers, lambda sp: corr.surface(*sp), first)
-    cpu += cpu_spec
+    if threaded:
+        first, cpu_spec = specs.join()
+        first, cpu = shared_map(pool, workers, lambda sp: corr.surface(*sp), first)
+        cpu += cpu_spec
+    else:
+        first, cpu = [corr(fine, th_c + delta * q, disk_f) for q in qs], 0.0
     surfaces: dict[int, np.ndarray] = dict(zip(qs, first, strict=True))
 
     def peak(q: int) -> float:
