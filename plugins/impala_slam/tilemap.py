@@ -189,6 +189,21 @@ class TileMap:
             support[win] = c > 0
         return out, support
 
+    def crop_with(self, ix0: int, iy0: int, nx: int, ny: int,
+                  fill: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None],
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`crop_with_support` (the weighted mean: not with ``total_normaliser``) through
+        ``fill(ws, count, out, support)``, called once per tile the window overlaps with views
+        of the tile's two layers and of the window's two outputs (zero before the call)."""
+        assert not self.total_normaliser
+        out = np.zeros((ny, nx), np.float32)
+        support = np.zeros((ny, nx), np.float32)
+        for key, win, tile in self._tiles(ix0, iy0, nx, ny):
+            cnt = self.count.get(key)
+            if cnt is not None:
+                fill(self.weighted_sum[key][tile], cnt[tile], out[win], support[win])
+        return out, support
+
     def bounds(self) -> tuple[int, int, int, int]:
         """(ix0, iy0, nx, ny) of the tiles' bounding box."""
         n = self.tile_cells

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_slam.rslam._jit import merge_tile
+from impala_slam.rslam._jit import mean_tile, merge_tile
 from impala_slam.rslam.component import RSlam
 from impala_slam.rslam.core import RSlamConfig, RSlamCore
 from impala_slam.synthetic import SyntheticWorld
@@ -43,6 +43,21 @@ def test_the_compiled_merge_equals_the_masked_numpy_add(weighted):
     for key in old.count:
         assert np.array_equal(old.weighted_sum[key], new.weighted_sum[key])
         assert np.array_equal(old.count[key], new.count[key])
+
+
+def test_the_compiled_read_equals_crop_with_support():
+    """The weighted mean and support read through TileMap.crop_with + mean_tile against
+    crop_with_support's masked division, bit for bit, over a window reaching unmapped tiles."""
+    rng = np.random.default_rng(6)
+    tm = TileMap(0.2, tile_m=8.0)
+    n = 130
+    alpha = rng.random((n, n)).astype(np.float32)
+    alpha[rng.random((n, n)) < 0.3] = 0.0
+    tm.add(-20, -30, (rng.random((n, n)) * 30.0).astype(np.float32) * alpha, alpha)
+    for window in [(-50, -60, 200, 190), (-5, 7, 33, 41)]:
+        old, new = tm.crop_with_support(*window), tm.crop_with(*window, mean_tile)
+        assert np.array_equal(old[0], new[0]) and np.array_equal(old[1], new[1])
+        assert 0 < new[1].sum() < new[1].size or window[2] == 33  # mapped and unmapped cells in the first
 
 
 def _run(threads: int, world: SyntheticWorld) -> tuple[list, RSlamCore]:

@@ -1,14 +1,15 @@
-"""R-SLAM's compiled loop (numba, ``cache=True``, nogil; imported at the first map update, never
-with the plugin): the merge of a turn into one map tile (eq. 6) in one pass. It gives the bits of
-the numpy formulation it replaces (alpha zeroed where the amplitude is NaN, alpha A, a masked add
-and the normaliser's add; tests/slam/test_map_update.py compares them)."""
+"""R-SLAM's compiled loops (numba, ``cache=True``, nogil; imported at the first map update or read,
+never with the plugin), each in one pass over a map tile: the merge of a turn (eq. 6) and the
+read of the weighted mean. They give the bits of the numpy formulations they replace (alpha
+zeroed where the amplitude is NaN, alpha A, a masked add and the normaliser's add; a masked
+division and the support; tests/slam/test_rslam_threads.py compares them)."""
 
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-__all__ = ["merge_tile"]
+__all__ = ["merge_tile", "mean_tile"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -28,3 +29,17 @@ def merge_tile(amp, alpha, ws, cnt, weighted):  # pragma: no cover - compiled
                 c_row[j] += w if weighted else one
                 touched = True
     return touched
+
+
+@numba.njit(cache=True, nogil=True)
+def mean_tile(ws, cnt, out, support):  # pragma: no cover - compiled
+    """Where ``cnt`` > 0: ``out = ws / cnt`` (float32) and ``support = 1``; elsewhere both are
+    left as they are (the caller's zeros)."""
+    one = np.float32(1.0)
+    for i in range(ws.shape[0]):
+        s_row, c_row, o_row, p_row = ws[i], cnt[i], out[i], support[i]
+        for j in range(ws.shape[1]):
+            c = c_row[j]
+            if c > 0:
+                o_row[j] = s_row[j] / c
+                p_row[j] = one

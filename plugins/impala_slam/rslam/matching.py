@@ -157,7 +157,12 @@ class _MapCrop:
 
     def read(self, ix0: int, iy0: int, nx: int, ny: int) -> None:
         self.x0, self.y0, self.nx, self.ny = ix0, iy0, nx, ny
-        self.m, self.sup = self.tilemap.crop_with_support(ix0, iy0, nx, ny)
+        if self.tilemap.total_normaliser:
+            self.m, self.sup = self.tilemap.crop_with_support(ix0, iy0, nx, ny)
+        else:  # the weighted mean in one compiled pass per tile (same bits as crop_with_support)
+            from ._jit import mean_tile
+
+            self.m, self.sup = self.tilemap.crop_with(ix0, iy0, nx, ny, mean_tile)
 
     def __call__(self, ix0: int, iy0: int, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
         i, j = iy0 - self.y0, ix0 - self.x0
