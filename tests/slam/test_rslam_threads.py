@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_slam.rslam._jit import mean_tile, merge_tile
+from impala_slam.rslam._jit import contrast_tail, mean_tile, merge_tile
 from impala_slam.rslam.component import RSlam
 from impala_slam.rslam.core import RSlamConfig, RSlamCore
 from impala_slam.synthetic import SyntheticWorld
@@ -58,6 +58,27 @@ def test_the_compiled_read_equals_crop_with_support():
         old, new = tm.crop_with_support(*window), tm.crop_with(*window, mean_tile)
         assert np.array_equal(old[0], new[0]) and np.array_equal(old[1], new[1])
         assert 0 < new[1].sum() < new[1].size or window[2] == 33  # mapped and unmapped cells in the first
+
+
+def test_the_compiled_contrast_tail_equals_numpy():
+    """contrast()'s last step against the numpy divide (where weight > 1e-3), subtract and
+    multiply it replaces, bit for bit, weights at and around 1e-3 included (NumPy 2 compares a
+    float32 array with a Python float in float32)."""
+    rng = np.random.default_rng(8)
+    img = (rng.random((60, 70)) * 20.0).astype(np.float32)
+    support = (rng.random((60, 70)) > 0.3).astype(np.float32)
+    mean = (rng.random((60, 70)) * 5.0).astype(np.float32)
+    weight = rng.random((60, 70)).astype(np.float32)
+    weight[::7] = np.float32(1e-3)
+    weight[1::7] = np.nextafter(np.float32(1e-3), np.float32(1.0))
+    weight[2::7] = 0.0
+    old = mean.copy()
+    np.divide(old, weight, out=old, where=weight > 1e-3)
+    np.subtract(img, old, out=old)
+    np.multiply(old, support, out=old)
+    new = mean.copy()
+    contrast_tail(img, new, weight, support[:, :])
+    assert np.array_equal(old, new) and np.array_equal(np.signbit(old), np.signbit(new))
 
 
 def _run(threads: int, world: SyntheticWorld) -> tuple[list, RSlamCore]:

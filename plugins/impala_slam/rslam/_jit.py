@@ -1,15 +1,16 @@
 """R-SLAM's compiled loops (numba, ``cache=True``, nogil; imported at the first map update or read,
-never with the plugin), each in one pass over a map tile: the merge of a turn (eq. 6) and the
-read of the weighted mean. They give the bits of the numpy formulations they replace (alpha
-zeroed where the amplitude is NaN, alpha A, a masked add and the normaliser's add; a masked
-division and the support; tests/slam/test_rslam_threads.py compares them)."""
+never with the plugin), each one pass: the merge of a turn into a map tile (eq. 6), the read of a
+tile's weighted mean, the end of :func:`~impala_slam.rslam.matching.contrast`. They give the
+bits of the numpy formulations they replace (alpha zeroed where the amplitude is NaN, alpha A, a
+masked add and the normaliser's add; a masked division and the support; a masked division, a
+difference and a product; tests/slam/test_rslam_threads.py compares them)."""
 
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-__all__ = ["merge_tile", "mean_tile"]
+__all__ = ["contrast_tail", "merge_tile", "mean_tile"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -43,3 +44,18 @@ def mean_tile(ws, cnt, out, support):  # pragma: no cover - compiled
             if c > 0:
                 o_row[j] = s_row[j] / c
                 p_row[j] = one
+
+
+@numba.njit(cache=True, nogil=True)
+def contrast_tail(img, mean, weight, support):  # pragma: no cover - compiled
+    """In place in ``mean``: ``(img - mean / weight) * support``, the division only where
+    weight > 1e-3 (float32, as NumPy 2 compares a float32 array with a Python float)."""
+    eps = np.float32(1e-3)
+    for i in range(img.shape[0]):
+        g_row, m_row, w_row, s_row = img[i], mean[i], weight[i], support[i]
+        for j in range(img.shape[1]):
+            m = m_row[j]
+            w = w_row[j]
+            if w > eps:
+                m = m / w
+            m_row[j] = (g_row[j] - m) * s_row[j]
