@@ -1,9 +1,10 @@
-"""R-SLAM's compiled loops (numba, ``cache=True``, nogil; imported at the first map update or read,
-never with the plugin), each one pass: the merge of a turn into a map tile (eq. 6), the read of a
-tile's weighted mean, the end of :func:`~impala_slam.rslam.matching.contrast`. They give the
-bits of the numpy formulations they replace (alpha zeroed where the amplitude is NaN, alpha A, a
-masked add and the normaliser's add; a masked division and the support; a masked division, a
-difference and a product; tests/slam/test_rslam_threads.py compares them)."""
+"""R-SLAM's compiled loops (numba, ``cache=True``, nogil; imported by ``RSlam.start()`` or at the
+first map update or read, never with the plugin), each one pass: the merge of a turn into a map
+tile (eq. 6), the read of a tile's weighted mean, the end of
+:func:`~impala_slam.rslam.matching.contrast`. They give the bits of the numpy formulations they
+replace (alpha zeroed where the amplitude is NaN, alpha A, a masked add and the normaliser's
+add; a masked division and the support; a masked division, a difference and a product;
+tests/slam/test_rslam_threads.py compares them)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,13 @@ import numpy as np
 __all__ = ["contrast_tail", "merge_tile", "mean_tile"]
 
 
-@numba.njit(cache=True, nogil=True)
+# one signature each, any-layout float32 images (views of tiles and windows are C-contiguous or not
+# by chance): compiled or loaded from the cache once, when this module is imported (RSlam.start),
+# never again at a turn
+_IMG = numba.float32[:, :]
+
+
+@numba.njit(numba.boolean(_IMG, _IMG, _IMG, _IMG, numba.boolean), cache=True, nogil=True)
 def merge_tile(amp, alpha, ws, cnt, weighted):  # pragma: no cover - compiled
     """Where alpha > 0 and ``amp`` is a number: ``ws += alpha * amp`` and ``cnt += alpha``
     (``weighted``) or ``cnt += 1``; float32 throughout (the same roundings as numpy's float32
@@ -32,7 +39,7 @@ def merge_tile(amp, alpha, ws, cnt, weighted):  # pragma: no cover - compiled
     return touched
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(numba.void(_IMG, _IMG, _IMG, _IMG), cache=True, nogil=True)
 def mean_tile(ws, cnt, out, support):  # pragma: no cover - compiled
     """Where ``cnt`` > 0: ``out = ws / cnt`` (float32) and ``support = 1``; elsewhere both are
     left as they are (the caller's zeros)."""
@@ -46,7 +53,7 @@ def mean_tile(ws, cnt, out, support):  # pragma: no cover - compiled
                 p_row[j] = one
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(numba.void(_IMG, _IMG, _IMG, _IMG), cache=True, nogil=True)
 def contrast_tail(img, mean, weight, support):  # pragma: no cover - compiled
     """In place in ``mean``: ``(img - mean / weight) * support``, the division only where
     weight > 1e-3 (float32, as NumPy 2 compares a float32 array with a Python float)."""

@@ -68,6 +68,8 @@ class RSlam(Component):
                     doc="threads sharing a turn's work (poses and map bit-identical whatever the number)")
 
     def start(self) -> None:
+        from . import _jit  # noqa: F401  the compiled loops loaded (or compiled once) now, not at the first turns
+
         mp = MatchParams(self.search_m, self.rot_span_deg, self.rot_step_deg, self.match_cell_m,
                          self.match_range_m, self.contrast_m, self.min_score, self.smooth_m)
         self.core = RSlamCore(RSlamConfig(mp, self.map_cell_m, self.tile_m, self.aperture_deg,

@@ -85,11 +85,13 @@ def contrast(img: np.ndarray, window_cells: int, support: np.ndarray | None = No
     """Each observed cell minus the mean of the observed cells in the ``window_cells``-wide
     square around it (odd, at least 3): positive above the local level, negative below it
     (kept: the correlation of eq. 5 then compares patterns, not levels); 0 where not observed.
+    In float32.
 
     The mean is taken over the observed cells only (``support``: 1 observed, 0 not; by
     default the non-zero cells), so the rim of the radar's reach and the edge of the
     mapped area do not turn into bright rings that would correlate with each other.
     """
+    img = np.asarray(img, np.float32)  # float32 throughout
     k = max(3, window_cells | 1)
     if support is None:
         support = (img > 0).astype(np.float32)
@@ -99,7 +101,7 @@ def contrast(img: np.ndarray, window_cells: int, support: np.ndarray | None = No
 
     # (img - mean / weight where weight > 1e-3) * support, in place, in one pass (the numpy
     # divide, subtract and multiply, same bits, without their mask and three passes)
-    contrast_tail(np.asarray(img), mean, weight, np.asarray(support))
+    contrast_tail(img, mean, weight, np.asarray(support, np.float32))
     return mean
 
 
