@@ -58,7 +58,8 @@ from impala_flow.msgs import Grid
 
 from ..se2 import between, compose, repeat
 from ..tilemap import TileMap, alpha_weight, warp_grid_to_map
-from .matching import MatchParams, match_to_map, shared_map
+from .matching import MatchParams, match_to_map
+from .sharing import shared_map
 
 __all__ = ["RSlamConfig", "RSlamCore"]
 

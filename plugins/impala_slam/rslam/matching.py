@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import functools
 import math
-import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
@@ -52,10 +51,11 @@ import numpy as np
 from impala_flow.msgs import Grid
 
 from ..tilemap import TileMap, warp_grid_to_map
+from .sharing import Shared, resolved, scratch, shared_map
 
 _SMOOTH_CELLS = 0.6  # Gaussian sigma applied before rotating (cells)
 
-__all__ = ["MatchParams", "MatchResult", "match_to_map", "contrast", "downsample_grid", "shared_map"]
+__all__ = ["MatchParams", "MatchResult", "match_to_map", "contrast", "downsample_grid"]
 
 
 @dataclass
@@ -243,66 +243,6 @@ def _dft_size(n: int) -> int:
     return min(m << max(0, math.ceil(math.log2(n / m))) for m in (1, 3, 5))
 
 
-_SCRATCH = threading.local()
-
-
-def _scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
-    """A work array kept per thread and shape (contents undefined), overwritten by the next call
-    with the same name and shape: a fresh multi-megabyte array costs its page faults at every
-    turn (2-3 ms of the fine level's window DFT and energy on Beynes)."""
-    pool = getattr(_SCRATCH, "pool", None)
-    if pool is None:
-        pool = _SCRATCH.pool = {}
-    key = (name, shape, np.dtype(dtype).str)
-    a = pool.get(key)
-    if a is None:
-        if len(pool) >= 64:  # shapes change only with the geometry: forget the old ones
-            pool.clear()
-        a = pool[key] = np.empty(shape, dtype)
-    return a
-
-
-class _Shared:
-    """[fn(x) for x in items] computed by up to ``workers`` threads of ``pool``, which start at
-    once, and by the calling thread from :meth:`join` on: each takes the next item until none is
-    left. Every item is the same computation on its own data whichever thread takes it, so the
-    results are bit-identical to ``pool=None`` (all on the calling thread)."""
-
-    def __init__(self, pool: Executor | None, workers: int, fn: Callable, items: list) -> None:
-        self.fn, self.items = fn, items
-        self.out: list = [None] * len(items)
-        self._order = iter(range(len(items)))
-        self._lock = threading.Lock()
-        n = min(workers, len(items)) if pool is not None else 0
-        self._futures = [pool.submit(self._work) for _ in range(n)] if pool is not None else []
-
-    def _work(self) -> float:
-        c0 = time.thread_time()
-        while True:
-            with self._lock:
-                i = next(self._order, None)
-            if i is None:
-                return time.thread_time() - c0
-            self.out[i] = self.fn(self.items[i])
-
-    def join(self) -> tuple[list, float]:
-        """(the results in the items' order, the thread CPU seconds the pool's threads spent)."""
-        self._work()
-        return self.out, sum(f.result() for f in self._futures)
-
-
-def shared_map(pool: Executor | None, workers: int, fn: Callable, items: list) -> tuple[list, float]:
-    """[fn(x) for x in items] shared among the calling thread and up to ``workers`` threads of
-    ``pool`` (:class:`_Shared`, the calling thread taking its share at once), with the thread
-    CPU seconds the pool's threads spent; bit-identical to ``pool=None`` when each item is
-    computed on its own data."""
-    return _Shared(pool, min(workers, len(items) - 1), fn, items).join()
-
-
-def _resolved(grid: Grid | Future) -> Grid:
-    return grid.result() if isinstance(grid, Future) else grid
-
-
 class _Correlator:
     """eq. (5) normalised (``TM_CCORR_NORMED``) of many templates against one map window.
 
@@ -315,7 +255,7 @@ class _Correlator:
     (``nonzeroRows`` would skip rows but leaves OpenCV's IPP path: 3-4 times slower here).
     The normalisation follows OpenCV's (num / (sqrt(window energy) |T|), +-1
     between 1 and 1.125 of it, 0 beyond), so the surface equals matchTemplate's to float32
-    rounding. Its work arrays are per-thread scratch (:func:`_scratch`): a correlator is used
+    rounding. Its work arrays are per-thread scratch (:func:`~impala_slam.rslam.sharing.scratch`): a correlator is used
     up before the next one of the same DFT size is made on its thread, and its templates may be
     correlated on several threads at once (each has its own template buffer)."""
 
@@ -327,12 +267,12 @@ class _Correlator:
         if self.empty:
             return
         size = self.size
-        pad = _scratch("window", (size, size))
+        pad = scratch("window", (size, size))
         pad[:n, :n] = window
         pad[n:], pad[:n, n:] = 0.0, 0.0
-        self.spectrum = cv2.dft(pad, dst=_scratch("window spectrum", (size, size)))
-        sq = np.square(window, dtype=np.float64, out=_scratch("square", (n, n), np.float64))
-        sq = cv2.integral(sq, sum=_scratch("integral", (n + 1, n + 1), np.float64))
+        self.spectrum = cv2.dft(pad, dst=scratch("window spectrum", (size, size)))
+        sq = np.square(window, dtype=np.float64, out=scratch("square", (n, n), np.float64))
+        sq = cv2.integral(sq, sum=scratch("integral", (n + 1, n + 1), np.float64))
         k = self.k
         self.energy = sq[m:m + k, m:m + k] - sq[:k, m:m + k] - sq[m:m + k, :k] + sq[:k, :k]
 
@@ -352,7 +292,7 @@ class _Correlator:
         # the product over the template's spectrum, the inverse into this thread's template buffer:
         # fresh arrays cost page faults, more work arrays cache misses (0.1-1 ms per rotation)
         prod = cv2.mulSpectrums(self.spectrum, spectrum, 0, spectrum, conjB=True)
-        num = cv2.idft(prod, _scratch("template", (self.size, self.size)),
+        num = cv2.idft(prod, scratch("template", (self.size, self.size)),
                        flags=cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE)[:k, :k].astype(np.float64)
         den = np.sqrt(np.maximum(self.energy, 0.0)) * norm
         out = np.zeros((k, k), np.float64)
@@ -368,14 +308,14 @@ def _template_spectrum(prepared: Grid, theta_rad: float, disk: np.ndarray, size:
     """(DFT on ``size`` x ``size`` cells, L2 norm) of the template P_k (:func:`_template`); no
     spectrum when the template is all zero. It does not depend on the map window: the templates
     of a level can be transformed while its window is being prepared. The spectrum is this
-    thread's work array ``slot`` (:func:`_scratch`: a fresh 1.6 MB array per rotation cost its
+    thread's work array ``slot`` (:func:`~impala_slam.rslam.sharing.scratch`: a fresh 1.6 MB array per rotation cost its
     page faults, 0.5-1 ms): it holds until the next spectrum of that slot on this thread."""
     m = disk.shape[0]
-    buf = _scratch("template", (size, size))  # per thread: the rotations may run on two
+    buf = scratch("template", (size, size))  # per thread: the rotations may run on two
     buf[m:], buf[:m, m:] = 0.0, 0.0
     _template(prepared, theta_rad, disk, out=buf[:m, :m])
     norm = cv2.norm(buf[:m, :m])  # L2, accumulated in double
-    return (cv2.dft(buf, _scratch("template spectrum " + slot, (size, size))) if norm != 0.0 else None), norm
+    return (cv2.dft(buf, scratch("template spectrum " + slot, (size, size))) if norm != 0.0 else None), norm
 
 
 def _lap(split: dict[str, float] | None, stage: str, seconds: float) -> None:
@@ -400,7 +340,7 @@ def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, 
     crop_c = _map_window(crops, ix0, iy0, n_c, f, k_c, sm_c)
     disk_c = _disk(h_c, cc, weight)
     corr = _Correlator(crop_c, disk_c.shape[0])  # the map's side first: the panoramic may still be in the making
-    coarse = _prepared(_resolved(grid), cc, k_c, sm_c, h_c + 1)
+    coarse = _prepared(resolved(grid), cc, k_c, sm_c, h_c + 1)
     n_rot = int(round(rot_span_deg / rot_step_deg))
     step = math.radians(rot_step_deg)
     thetas = th_p + step * np.arange(-n_rot, n_rot + 1)
@@ -440,11 +380,11 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     CPU of ``pool``'s threads included.
 
     ``pool`` (with ``workers`` threads for this call): the rotations of each level are shared
-    among the calling thread and those (:class:`_Shared`), the fine panoramic is prepared on one
-    of them during the coarse level and the fine templates are transformed there while the fine
-    map window is prepared. ``grid`` may be a future (its dB image being computed on the pool):
-    the map windows are read first. Each piece of work is the same computation on the same data
-    whichever thread runs it: the result is bit-identical to ``pool=None``."""
+    among the calling thread and those (:class:`~impala_slam.rslam.sharing.Shared`), the fine
+    panoramic is prepared on one of them during the coarse level and the fine templates are
+    transformed there while the fine map window is prepared. ``grid`` may be a future (its dB
+    image being computed on the pool): the map windows are read first. Each piece of work is the
+    same computation on the same data whichever thread runs it: the result is bit-identical to ``pool=None``."""
     if not p.weight_template:
         weight = None
     cell = tilemap.cell_m
@@ -458,7 +398,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
 
         def prepare_fine() -> tuple[Grid, float]:
             c0 = time.thread_time()
-            return _prepared(_resolved(grid), cell, k_f, sm_f, h_f + 1), time.thread_time() - c0
+            return _prepared(resolved(grid), cell, k_f, sm_f, h_f + 1), time.thread_time() - c0
 
         fine_job = pool.submit(prepare_fine)
     crops = _MapCrop(tilemap)
@@ -489,7 +429,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     disk_f = _disk(h_f, cell, weight)
     delta = step / 2.0
     if fine_job is None:
-        fine, cpu_prep = _prepared(_resolved(grid), cell, k_f, sm_f, h_f + 1), 0.0
+        fine, cpu_prep = _prepared(resolved(grid), cell, k_f, sm_f, h_f + 1), 0.0
     else:
         fine, cpu_prep = fine_job.result()  # done: the worker took it before the coarse rotations
     # the three middle rotations are always needed (the climb below starts there): their templates
@@ -503,7 +443,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     threaded = pool is not None and workers >= 1
     qs = [-1, 0, 1, 2 * side] if threaded else [-1, 0, 1]
     if threaded:
-        specs = _Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f, str(q)),
+        specs = Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f, str(q)),
                         qs)
     crop = _map_window(crops, fx0, fy0, n_f, 1, k_f, sm_f)
     corr = _Correlator(crop, disk_f.shape[0])
