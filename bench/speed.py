@@ -16,11 +16,14 @@ Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once)
 - ``import``: ``impala-flow import radiate`` of the Edinburgh head, scans per second (>= 50);
 - ``radiate_e2e``: graphs/oxford.yaml (panoramic, R-SLAM and FMT side by side, evaluators)
   and graphs/odometry_navtech.yaml on the imported head with ``impala-flow run``, x real time
-  start-up included (>= 3x and >= 6x);
+  start-up included (>= 3x and >= 6x), and the command's start-up and exit outside its run
+  (``oxford_startup_s``: interpreter, imports, plugins, the graph built);
 - ``radiate_rslam``: graphs/oxford.yaml in-process, ms per turn of each component: panoramic
   builder (<= 15), R-SLAM (<= 40), FMT registration (<= 15), evaluators, and the rest of
   the wall time per turn ("engine": replay, delivery, the executor and the reports written
-  at stop), with R-SLAM's and FMT's ATE and R-SLAM's map size;
+  at stop), split into the components' start() (s), their stop() (s, per component: the
+  evaluators draw their reports there; ``oxford_stop_s``) and the rest per turn
+  (``oxford_engine_loop_ms_per_turn``), with R-SLAM's and FMT's ATE and R-SLAM's map size;
 - ``radiate_odometry``: graphs/odometry_navtech.yaml in-process, DistortionOdometry (<= 20);
 - ``radiate_kissicp``: graphs/kiss_icp_navtech.yaml in-process: the peer's ms per scan
   (kiss-icp's registration, and the peak extractor that feeds it) and its ATE;
@@ -138,10 +141,36 @@ def _single_thread() -> None:
         pass
 
 
+class LifeTimer:
+    """Wall and CPU time of every component's ``start()`` and ``stop()`` (the reports are drawn in stop)."""
+
+    def __init__(self, components: dict[str, Any]) -> None:
+        self.wall_s = {"start": 0.0, "stop": 0.0}
+        self.cpu_s = {"start": 0.0, "stop": 0.0}
+        self.stop_by_component: dict[str, float] = {}
+        for name, comp in components.items():
+            for phase in ("start", "stop"):
+                setattr(comp, phase, self._wrap(name, phase, getattr(comp, phase)))
+
+    def _wrap(self, name: str, phase: str, inner: Any) -> Any:
+        def call() -> None:
+            w0, c0 = time.perf_counter(), time.process_time()
+            try:
+                inner()
+            finally:
+                dw = time.perf_counter() - w0
+                self.wall_s[phase] += dw
+                self.cpu_s[phase] += time.process_time() - c0
+                if phase == "stop":
+                    self.stop_by_component[name] = dw
+        return call
+
+
 def run_timed(graph: str | None, text: str | None, variables: dict[str, Any], ports: dict[str, str | None],
               ) -> tuple[Any, dict[str, TurnTimer], Any, float]:
     """Build ``graph`` (a file of graphs/ or YAML text) through a Session, time the components
-    named in ``ports`` (name -> per-turn output, None: not cut into turns), run it at max speed."""
+    named in ``ports`` (name -> per-turn output, None: not cut into turns) and every component's
+    start() and stop() (``net.life``: :class:`LifeTimer`), run it at max speed."""
     from impala_flow import Session
 
     _single_thread()
@@ -149,14 +178,29 @@ def run_timed(graph: str | None, text: str | None, variables: dict[str, Any], po
     spec = session.load(ROOT / "graphs" / graph, variables=variables) if graph else session.load_text(text or "")
     net = session.build(spec)
     timers = {name: TurnTimer(net.components[name], port) for name, port in ports.items()}
+    net.life = LifeTimer(net.components)
     t0 = time.perf_counter()
     summary = session.run(net, speed="max")
     return net, timers, summary, time.perf_counter() - t0
 
 
 def _engine_ms(summary: Any, timers: dict[str, TurnTimer], wall_s: float, turns: int) -> float:
-    """Wall time per turn not spent in the timed components: replay, delivery, the executor."""
+    """Wall time per turn not spent in the timed components' process calls: replay, delivery,
+    the executor, the components' start() and stop() (the reports)."""
     return 1e3 * (wall_s - sum(t.total_s for t in timers.values())) / max(1, turns)
+
+
+def _print_life(net: Any, engine_ms: float, turns: int) -> float:
+    """Print the engine share's split (start, stop per component, the rest per turn); return the rest
+    in ms per turn (replay, delivery, the executor)."""
+    life = net.life
+    loop_ms = engine_ms - 1e3 * (life.wall_s["start"] + life.wall_s["stop"]) / max(1, turns)
+    by_time = sorted(life.stop_by_component.items(), key=lambda x: -x[1])
+    stops = ", ".join(f"{n} {s:.2f}" for n, s in by_time if s >= 0.01)
+    print(f"  engine split: start() {life.wall_s['start']:.2f} s wall ({life.cpu_s['start']:.2f} s CPU), stop() "
+          f"{life.wall_s['stop']:.2f} s wall ({life.cpu_s['stop']:.2f} s CPU; {stops}), the rest "
+          f"{loop_ms:.2f} ms per turn (replay, delivery, executor)")
+    return loop_ms
 
 
 def _print_split(title: str, timers: dict[str, TurnTimer], warmup: int, turns: int, wall_s: float,
@@ -203,10 +247,13 @@ def section_radiate_e2e(args: argparse.Namespace) -> dict:
     for key, graph in (("oxford", "oxford.yaml"), ("odometry", "odometry_navtech.yaml")):
         mission_s, wall, run_s = _e2e(graph, Path(args.radiate_mission), Path(args.out) / f"e2e-{key}")
         print(f"impala-flow run graphs/{graph}: mission {mission_s:.1f} s in {wall:.1f} s wall "
-              f"({run_s:.1f} s running, the rest start-up and reports): x{mission_s / wall:.2f} real time "
+              f"({run_s:.1f} s running with the components' start and stop (reports), {wall - run_s:.1f} s "
+              f"start-up and exit): x{mission_s / wall:.2f} real time "
               f"(x{mission_s / run_s:.2f} running)")
         res[f"{key}_graph_x_realtime"] = round(mission_s / wall, 2)
         res[f"{key}_graph_run_x_realtime"] = round(mission_s / run_s, 2)
+        # the command's start-up (interpreter, imports, plugins, the graph built) and exit, outside its run
+        res[f"{key}_startup_s"] = round(wall - run_s, 2)
     return res
 
 
@@ -218,6 +265,7 @@ def section_radiate_rslam(args: argparse.Namespace) -> dict:
     turns = len(timers["slam"].turns)
     eng = _engine_ms(summary, timers, wall, turns)
     _print_split("graphs/oxford.yaml on the RADIATE head", timers, args.warmup, turns, wall, eng)
+    loop_ms = _print_life(net, eng, turns)
     core = net.components["slam"].core
     print(f"  R-SLAM: match {1e3 * core.match_s / turns:.1f} + update {1e3 * core.update_s / turns:.1f} ms per turn "
           f"(means), map {core.map.nbytes / 2 ** 20:.1f} MB")
@@ -225,7 +273,9 @@ def section_radiate_rslam(args: argparse.Namespace) -> dict:
     return {"panoramic_radiate_ms_per_turn": round(timers["panoramic"].median_ms(args.warmup), 2),
             "rslam_radiate_ms_per_turn": round(timers["slam"].median_ms(args.warmup), 2),
             "fmt_radiate_ms_per_turn": round(timers["fmt"].median_ms(args.warmup), 2),
-            "oxford_engine_ms_per_turn": round(eng, 2),
+            "oxford_engine_ms_per_turn": round(eng, 2), "oxford_engine_loop_ms_per_turn": round(loop_ms, 2),
+            "oxford_stop_s": round(net.life.wall_s["stop"], 2), "oxford_stop_cpu_s": round(net.life.cpu_s["stop"], 2),
+            "oxford_start_s": round(net.life.wall_s["start"], 2),
             "oxford_inprocess_x_realtime": round(summary.mission_s / wall, 2),
             "rslam_radiate_ate_m": cmp.get("rslam_ate_rmse_m"), "fmt_radiate_ate_m": cmp.get("fmt_ate_rmse_m"),
             "rslam_radiate_map_mb": round(core.map.nbytes / 2 ** 20, 1)}
@@ -238,8 +288,10 @@ def section_radiate_odometry(args: argparse.Namespace) -> dict:
     turns = len(timers["odometry"].turns)
     eng = _engine_ms(summary, timers, wall, turns)
     _print_split("graphs/odometry_navtech.yaml on the RADIATE head", timers, args.warmup, turns, wall, eng)
+    loop_ms = _print_life(net, eng, turns)
     return {"odometry_radiate_ms_per_turn": round(timers["odometry"].median_ms(args.warmup), 2),
-            "odometry_engine_ms_per_turn": round(eng, 2),
+            "odometry_engine_ms_per_turn": round(eng, 2), "odometry_engine_loop_ms_per_turn": round(loop_ms, 2),
+            "odometry_stop_s": round(net.life.wall_s["stop"], 2),
             "odometry_inprocess_x_realtime": round(summary.mission_s / wall, 2),
             "odometry_radiate_ate_m": summary.extra.get("eval", {}).get("ate_rmse_m")}
 

@@ -24,10 +24,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import networkx as nx
-
 from ._component import Component
-from ._network import Network
+from ._network import Network, topological_order
 from ._ports import InputPort
 from ._summary import ComponentError, RunSummary
 
@@ -42,8 +40,9 @@ def event_order(network: Network) -> list[Component]:
     the same graph gives the same order whatever the order of its YAML file
     (``CycleError`` from :meth:`Network.order` for a cycle without a delay)."""
     network.order()  # raises CycleError, naming the cycle
-    g = network.digraph(include_delayed=False)
-    return [network.components[n] for n in nx.lexicographical_topological_sort(g, key=str)]
+    names = topological_order(network.components, network.edges(include_delayed=False), str)
+    assert names is not None  # no cycle: order() said so
+    return [network.components[n] for n in names]
 
 
 def check_source_time(name: str, port: str, t: int) -> None:

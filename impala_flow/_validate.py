@@ -13,6 +13,7 @@ import fnmatch
 from typing import Any
 
 from ._component import Component, Input, Output
+from ._network import topological_order
 from ._paths import check_paths
 from ._registry import Registry
 from ._spec import GraphSpec, Problem, closest, did_you_mean
@@ -158,18 +159,16 @@ def validate(spec: GraphSpec, registry: Registry) -> list[Problem]:
             if decl.required and (cid, name) not in connected and cid != RECORDER_ID:
                 problems.append(Problem(spec.components[cid].loc,
                                         f"component '{cid}': required input '{name}' is not connected"))
-    import networkx as nx  # imported on first validation only: it is slow to import
+    if topological_order((), ((a, b) for a, b, _ in edges), str) is None:  # a cycle: networkx names it
+        import networkx as nx  # only then: it is slow to import
 
-    g = nx.DiGraph()
-    for a, b, c in edges:
-        g.add_edge(a, b, conn=c)
-    try:
+        g = nx.DiGraph()
+        for a, b, c in edges:
+            g.add_edge(a, b, conn=c)
         cyc = nx.find_cycle(g)
         conn = g.edges[cyc[0][0], cyc[0][1]]["conn"]
         path = " -> ".join([a for a, _ in cyc] + [cyc[0][0]])
         problems.append(Problem(conn.loc, f"cycle without a delay: {path} (mark one connection '[delay]')"))
-    except nx.NetworkXNoCycle:
-        pass
     if spec.record is not None:
         if RECORDER_TYPE not in registry.components:
             problems.append(Problem(spec.record_loc, f"record: needs the '{RECORDER_TYPE}' component "

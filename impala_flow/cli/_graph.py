@@ -13,8 +13,6 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-import networkx as nx
-
 from .._build import to_dot
 from .._component import Source
 from .._network import Network
@@ -126,6 +124,8 @@ def layout(net: Network) -> dict[str, Box]:
                   in_w + out_w + 3 * PAD)
         b.h = HEAD + ROW * max(len(b.ins), len(b.outs)) + (0.1 if (b.ins or b.outs) else 0.0)
         boxes[c.name] = b
+    import networkx as nx  # here, not at import: every command (run too) imports this module
+
     g = net.digraph(include_delayed=False)
     layers: list[list[str]] = []
     rank = {n: k for k, n in enumerate(boxes)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fnmatch
 import logging
+import os
 from collections.abc import Iterator
 from typing import Any
 
@@ -160,8 +161,23 @@ class Replayer(Source):
             k += 1
 
     def duration_hint_ns(self) -> int | None:
+        # asked three times before a run starts (the timer check of the command and of the
+        # executor, the progress bar): the recording's summary is read once per file version
         try:
-            with open_recording(self.path, run_codecs(), adapter_params=self.adapter_params) as r:
+            st = os.stat(self.path)
+            key = (self.path, st.st_mtime_ns, st.st_size, self.start_s, self.end_s, self.loops)
+        except OSError:
+            key = None
+        cached = getattr(self, "_hint", None)
+        if key is not None and cached is not None and cached[0] == key:
+            return cached[1]
+        hint = self._duration_hint_ns()
+        self._hint = (key, hint)
+        return hint
+
+    def _duration_hint_ns(self) -> int | None:
+        try:  # the run's registry when built from a graph (no second plugin load)
+            with open_recording(self.path, run_codecs(self.registry), adapter_params=self.adapter_params) as r:
                 lo, hi = self._window(r)
                 end = r.info().end_ns
         except Exception:  # noqa: BLE001 - only a hint

@@ -24,7 +24,7 @@ from ..metrics import (
     relative_position,
     rigid_align_2d,
 )
-from ..report import METRICS_FILE, new_figure, show_map
+from ..report import METRICS_FILE, new_figure, save_figure, show_map
 from .core import MAX_ROWS, Iterations, iteration_curves, sorted_by_time
 
 __all__ = ["TrajectoryComparison"]
@@ -361,7 +361,7 @@ class TrajectoryComparison(Component):
         ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{self.title}: final trajectories ({self.align} alignment)")
         ax.grid(alpha=0.3)
         fig.legend(loc="outside lower center", ncol=2, frameon=False, fontsize=8)  # never over the paths
-        fig.savefig(path)
+        save_figure(fig, path)
 
     def _convergence_figure(self, path: Path) -> None:
         """Fig. 9: (a) average error per iteration, (b) rate of convergence, (c) the final
@@ -407,7 +407,7 @@ class TrajectoryComparison(Component):
             if ax.get_lines():
                 ax.legend(loc="best", frameon=False, fontsize=8)
         fig.suptitle(self.title)
-        fig.savefig(path)
+        save_figure(fig, path)
 
     # --- lifecycle --------------------------------------------------------------------------
     def stop(self) -> None:
