@@ -8,13 +8,24 @@ summary with schemas, channels, statistics, chunk and metadata indexes, summary 
 footer CRC), and the tests read every file back with ``mcap.reader.make_reader``.
 Schemas, channels and metadata are written between chunks, straight to the file, so a
 damaged chunk never takes a channel definition with it.
+
+With ``threads=2`` a full chunk is handed to a second thread that computes its CRC, compresses it
+(zstd and lz4 release the GIL) and writes it with its message indexes, while the caller fills the
+next one. Every record still reaches the file in the order it was made, and chunks are cut where
+the caller cuts them, so the bytes are the same as with one thread. The hand-off is bounded:
+:data:`QUEUE_JOBS` records or chunks waiting (at most that many chunks' bytes), then the caller waits.
+A chunk is written as soon as it is handed over (never held until the next one fills), so a process
+killed with SIGKILL loses at most the chunk being compressed besides the one in progress.
 """
 
 from __future__ import annotations
 
+import queue
 import struct
+import threading
 import zlib
 from collections import defaultdict
+from collections.abc import Callable
 from typing import Any
 
 import lz4.frame
@@ -43,14 +54,60 @@ _pack_msg, _OP_MESSAGE = _MSG.pack, int(Opcode.MESSAGE)  # the enum's attribute 
 _CHUNK = struct.Struct("<BQQQQI")  # opcode, length, start, end, uncompressed size, crc
 _U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
 _FOOTER = struct.Struct("<BQQQ")
+#: jobs (a chunk, or a record written between chunks) waiting for the writing thread before the caller waits
+QUEUE_JOBS = 2
+
+
+class _WritingThread:
+    """Runs ``(function, args)`` jobs in submission order on one thread. The first error is kept and
+    raised in the caller (with ``name``) at its next :meth:`submit` or at :meth:`stop`; the jobs after
+    it are dropped, never run out of order."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.error: BaseException | None = None
+        self._q: queue.Queue = queue.Queue(maxsize=QUEUE_JOBS)
+        self._thread = threading.Thread(target=self._run, name="impala-mcap-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            job = self._q.get()
+            if job is None:
+                return
+            if self.error is None:
+                try:
+                    job[0](*job[1])
+                except BaseException as e:  # raised in the caller, named
+                    self.error = e
+
+    def _raise(self) -> None:
+        e = self.error
+        if e is not None:
+            raise OSError(f"{self.name}: writing the recording failed: {type(e).__name__}: {e}") from e
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> None:
+        self._raise()
+        self._q.put((fn, args))
+
+    def stop(self) -> None:
+        """Wait until every job submitted is written (or dropped after an error); raise that error."""
+        if self._thread.is_alive():
+            self._q.put(None)
+            self._thread.join()
+        self._raise()
 
 
 class McapWriter:
-    """Write MCAP records to ``stream`` (``write``/``tell``), chunking messages."""
+    """Write MCAP records to ``stream`` (``write``/``tell``), chunking messages; ``threads=2``:
+    chunks compressed and written on a second thread (module doc; ``name`` names the file in its
+    errors). :meth:`finish` (or :meth:`stop_thread`) must be called before ``stream`` is closed."""
 
-    def __init__(self, stream: Any, chunk_size: int, compression: str) -> None:
+    def __init__(self, stream: Any, chunk_size: int, compression: str, threads: int = 1, name: str = "") -> None:
         if compression not in ("zstd", "lz4", ""):
             raise ValueError(f"unknown compression {compression!r}")
+        if threads not in (1, 2):
+            raise ValueError(f"threads must be 1 or 2, not {threads!r}")
         self._out = stream
         self._chunk_size = chunk_size
         self._compression = compression
@@ -66,17 +123,39 @@ class McapWriter:
         self.counts: dict[int, int] = defaultdict(int)
         self.message_count = 0
         self._t_min = self._t_max = 0
+        self._thread = _WritingThread(name or "mcap") if threads == 2 else None
 
-    def _record(self, record: Any) -> tuple[int, int]:
-        rb = RecordBuilder()
-        record.write(rb)
-        data = rb.end()
+    def _run(self, fn: Callable[..., Any], *args: Any) -> None:
+        """``fn(*args)`` now, or on the writing thread after every job before it."""
+        if self._thread is None:
+            fn(*args)
+        else:
+            self._thread.submit(fn, *args)
+
+    def stop_thread(self, raise_error: bool = True) -> None:
+        """Write everything handed to the writing thread and end it, raising its error if any
+        (``raise_error=False``: when another error is on its way already)."""
+        th, self._thread = self._thread, None
+        if th is not None:
+            try:
+                th.stop()
+            except OSError:
+                if raise_error:
+                    raise
+
+    def _write(self, data: bytes, metadata_name: str | None = None) -> None:
         at = self._out.tell()
         self._out.write(data)
-        return at, len(data)
+        if metadata_name is not None:
+            self._metadata_indexes.append(MetadataIndex(offset=at, length=len(data), name=metadata_name))
+
+    def _record(self, record: Any, metadata_name: str | None = None) -> None:
+        rb = RecordBuilder()
+        record.write(rb)
+        self._run(self._write, rb.end(), metadata_name)
 
     def start(self, profile: str, library: str) -> None:
-        self._out.write(MAGIC)
+        self._run(self._write, MAGIC)
         self._record(Header(profile, library))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
@@ -94,8 +173,7 @@ class McapWriter:
         return c.id
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
-        at, length = self._record(Metadata(name=name, metadata=data))
-        self._metadata_indexes.append(MetadataIndex(offset=at, length=length, name=name))
+        self._record(Metadata(name=name, metadata=data), name)
 
     def add_message(self, channel_id: int, t_ns: int, parts: list, size: int,
                     seq: int) -> None:
@@ -132,7 +210,12 @@ class McapWriter:
         """Write the chunk in progress (if any) and its message indexes."""
         if not self._n_chunk:
             return
-        records = self._buf
+        self._run(self._write_chunk, self._buf, self._index, self._start, self._end)
+        self._buf = bytearray()
+        self._index = {}
+        self._n_chunk = 0
+
+    def _write_chunk(self, records: bytearray, index: dict[int, list[int]], start: int, end: int) -> None:
         crc = zlib.crc32(records)
         if self._zstd is not None:
             data: bytes | bytearray = self._zstd.compress(records)
@@ -142,7 +225,7 @@ class McapWriter:
             data = records
         comp = self._compression.encode()
         length = 8 + 8 + 8 + 4 + 4 + len(comp) + 8 + len(data)
-        head = (_CHUNK.pack(Opcode.CHUNK, length, self._start, self._end, len(records), crc)
+        head = (_CHUNK.pack(Opcode.CHUNK, length, start, end, len(records), crc)
                 + _U32.pack(len(comp)) + comp + _U64.pack(len(data)))
         out = self._out
         chunk_at = out.tell()
@@ -152,7 +235,7 @@ class McapWriter:
         offsets: dict[int, int] = {}
         pieces = []
         pos = index_at
-        for cid, pairs in self._index.items():
+        for cid, pairs in index.items():
             body = struct.pack(f"<HI{len(pairs)}Q", cid, 8 * len(pairs), *pairs)
             rec = struct.pack("<BQ", Opcode.MESSAGE_INDEX, len(body)) + body
             offsets[cid] = pos
@@ -160,18 +243,20 @@ class McapWriter:
             pieces.append(rec)
         out.write(b"".join(pieces))
         self._chunk_indexes.append(ChunkIndex(
-            message_start_time=self._start, message_end_time=self._end,
+            message_start_time=start, message_end_time=end,
             chunk_start_offset=chunk_at, chunk_length=len(head) + len(data),
             message_index_offsets=offsets, message_index_length=pos - index_at,
             compression=self._compression, compressed_size=len(data),
             uncompressed_size=len(records)))
-        self._buf = bytearray()
-        self._index = {}
-        self._n_chunk = 0
 
     def finish(self) -> None:
         """Last chunk, data end, summary (with offsets and CRC), footer, magic."""
-        self.flush_chunk()
+        try:
+            self.flush_chunk()
+        except BaseException:
+            self.stop_thread(raise_error=False)
+            raise
+        self.stop_thread()
         self._record(DataEnd(0))
         summary_at = self._out.tell()
         rb = RecordBuilder()

@@ -3,7 +3,9 @@
 One channel per stream (topic ``component/port``), ``log_time`` = ``publish_time`` = the
 sample timestamp (int ns). Chunks go to the operating system as soon as they are full
 (the file is opened unbuffered), and at least every ``flush_period_s`` of wall time, so a
-process killed with SIGKILL leaves a file readable up to its last complete chunk.
+process killed with SIGKILL leaves a file readable up to its last complete chunk. With
+``threads=2`` (the default) chunks are compressed and written on a second thread, in order,
+as soon as they are cut: the same bytes, the caller's thread free for the next chunk.
 """
 
 from __future__ import annotations
@@ -85,16 +87,23 @@ class MissionWriter:
     with ``native=False`` only in them (no native channel, no mirror: a file other tools play back
     as it is, its header profile the format's). A format no plugin registers is a CodecError
     naming the plugin and its pip line.
+
+    ``threads``: 2 compresses and writes each chunk on a second thread while the caller fills the
+    next one (the file's bytes are the same as with 1; an error there is raised at the next
+    write or at :meth:`close`, naming the file). :meth:`close` waits for it.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
                  compression: str = "zstd", chunk_size: int = 1 << 20,
                  metadata: dict[str, dict[str, str]] | None = None, foxglove: bool = True,
                  json_views: bool = False,
-                 flush_period_s: float | None = 1.0, foreign: tuple[str, ...] = (), native: bool = True) -> None:
+                 flush_period_s: float | None = 1.0, foreign: tuple[str, ...] = (), native: bool = True,
+                 threads: int = 2) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}, "
                              f"not {compression!r}")
+        if threads not in (1, 2):
+            raise ValueError(f"threads must be 1 or 2, not {threads!r}")
         if not native and not foreign:
             raise ValueError("native=False needs a foreign output format (nothing would be written)")
         self.path = os.fspath(path)
@@ -114,7 +123,8 @@ class MissionWriter:
         self._tf: Mirror | None = None  # the frame-tree mirror, once its channel is declared
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
-        self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
+        self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression], threads=threads,
+                                name=self.path)
         self._mcap.start(profile=PROFILE if native else self._foreign[0].profile, library="impala-flow")
         self._closed = False
         for name, data in (metadata or {}).items():
@@ -258,7 +268,10 @@ class MissionWriter:
                 self._write_foreign(fw.finish(), "")
             self._mcap.finish()
         finally:
-            self._file.close()
+            try:
+                self._mcap.stop_thread(raise_error=False)  # after an error above: nothing writes the file any more
+            finally:
+                self._file.close()
 
     def __enter__(self) -> MissionWriter:
         return self
