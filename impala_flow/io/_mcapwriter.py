@@ -114,8 +114,6 @@ class McapWriter:
         self._zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL) if compression == "zstd" else None
         self._buf = bytearray()
         self._index: dict[int, list[int]] = {}  # channel -> [t, offset, t, offset, ...]
-        self._start = self._end = 0
-        self._n_chunk = 0
         self.schemas: list[Schema] = []
         self.channels: list[Channel] = []
         self._chunk_indexes: list[ChunkIndex] = []
@@ -178,42 +176,70 @@ class McapWriter:
     def add_message(self, channel_id: int, t_ns: int, parts: list, size: int,
                     seq: int) -> None:
         """Append one message whose payload is the concatenation of ``parts`` (``size``
-        bytes): each part is copied once, into the chunk."""
+        bytes): each part is copied once, into the chunk. Nothing else per message: the
+        chunk's time span and the counts are taken from its index when it is cut."""
         buf = self._buf
-        off = len(buf)
-        buf += _pack_msg(_OP_MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
-        for p in parts:
-            buf += p
         idx = self._index.get(channel_id)
         if idx is None:
             idx = self._index[channel_id] = []
-        idx += (t_ns, off)
-        if self._n_chunk == 0:
-            self._start = self._end = t_ns
-        elif t_ns < self._start:
-            self._start = t_ns
-        elif t_ns > self._end:
-            self._end = t_ns
-        self._n_chunk += 1
-        self.counts[channel_id] += 1
-        if self.message_count == 0:
-            self._t_min = self._t_max = t_ns
-        elif t_ns < self._t_min:
-            self._t_min = t_ns
-        elif t_ns > self._t_max:
-            self._t_max = t_ns
-        self.message_count += 1
+        idx += (t_ns, len(buf))
+        buf += _pack_msg(_OP_MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
+        for p in parts:
+            buf += p
+        if len(buf) >= self._chunk_size:
+            self.flush_chunk()
+
+    def add_messages(self, channel_id: int, t_ns: int, parts: list, size: int, seq: int,
+                     channel_id2: int, payload2: bytes) -> None:
+        """:meth:`add_message` of two messages of the same time and sequence (a sample and its
+        mirror), the second's payload one buffer: one call instead of two."""
+        buf = self._buf
+        index = self._index
+        idx = index.get(channel_id)
+        if idx is None:
+            idx = index[channel_id] = []
+        idx += (t_ns, len(buf))
+        buf += _pack_msg(_OP_MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
+        for p in parts:
+            buf += p
+        if len(buf) >= self._chunk_size:
+            self.flush_chunk()
+            buf, index = self._buf, self._index
+        idx = index.get(channel_id2)
+        if idx is None:
+            idx = index[channel_id2] = []
+        idx += (t_ns, len(buf))
+        buf += _pack_msg(_OP_MESSAGE, 22 + len(payload2), channel_id2, seq, t_ns, t_ns)
+        buf += payload2
         if len(buf) >= self._chunk_size:
             self.flush_chunk()
 
     def flush_chunk(self) -> None:
         """Write the chunk in progress (if any) and its message indexes."""
-        if not self._n_chunk:
+        index = self._index
+        if not index:
             return
-        self._run(self._write_chunk, self._buf, self._index, self._start, self._end)
+        counts = self.counts
+        start = end = None
+        n_chunk = 0
+        for cid, pairs in index.items():  # in order of first message: the statistics' order as when counted one by one
+            times = pairs[0::2]
+            n = len(times)
+            counts[cid] += n
+            n_chunk += n
+            lo, hi = min(times), max(times)
+            if start is None or lo < start:
+                start = lo
+            if end is None or hi > end:
+                end = hi
+        if self.message_count == 0 or start < self._t_min:
+            self._t_min = start
+        if self.message_count == 0 or end > self._t_max:
+            self._t_max = end
+        self.message_count += n_chunk
+        self._run(self._write_chunk, self._buf, index, start, end)
         self._buf = bytearray()
         self._index = {}
-        self._n_chunk = 0
 
     def _write_chunk(self, records: bytearray, index: dict[int, list[int]], start: int, end: int) -> None:
         crc = zlib.crc32(records)

@@ -209,17 +209,23 @@ class MissionWriter:
         if t_ns < 0:
             raise ValueError(f"topic {topic!r}: negative timestamp {t_ns} ns")
         seq &= 0xFFFFFFFF
+        mirror = tp.mirror
         if self.native:
             parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
             size = 0
             for p in parts:  # bytes, or arrays' memoryviews
                 c = type(p)
                 size += len(p) if c is bytes else p.nbytes if c is memoryview else memoryview(p).nbytes
-            self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
+            if mirror is not None and not self._foreign:  # the common case: the sample and its mirror, one call
+                self._mcap.add_messages(tp.channel_id, t_ns, parts, size, seq, tp.mirror_id,
+                                        mirror.convert(data, t_ns))
+                mirror = None
+            else:
+                self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)
-        if tp.mirror is not None:
-            pb = tp.mirror.convert(data, t_ns)
+        if mirror is not None:
+            pb = mirror.convert(data, t_ns)
             self._mcap.add_message(tp.mirror_id, t_ns, [pb], len(pb), seq)
         tp.count += 1
         if self._flush_period_s is not None:
