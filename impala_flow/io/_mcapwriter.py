@@ -23,6 +23,7 @@ from __future__ import annotations
 import queue
 import struct
 import threading
+import time
 import zlib
 from collections import defaultdict
 from collections.abc import Callable
@@ -66,6 +67,7 @@ class _WritingThread:
     def __init__(self, name: str) -> None:
         self.name = name
         self.error: BaseException | None = None
+        self.cpu_s = 0.0  # CPU time of the jobs run (the thread's own clock)
         self._q: queue.Queue = queue.Queue(maxsize=QUEUE_JOBS)
         self._thread = threading.Thread(target=self._run, name="impala-mcap-writer", daemon=True)
         self._thread.start()
@@ -76,10 +78,12 @@ class _WritingThread:
             if job is None:
                 return
             if self.error is None:
+                c0 = time.thread_time()
                 try:
                     job[0](*job[1])
                 except BaseException as e:  # raised in the caller, named
                     self.error = e
+                self.cpu_s += time.thread_time() - c0
 
     def _raise(self) -> None:
         e = self.error
@@ -122,6 +126,7 @@ class McapWriter:
         self.message_count = 0
         self._t_min = self._t_max = 0
         self._thread = _WritingThread(name or "mcap") if threads == 2 else None
+        self.thread_cpu_s = 0.0  # CPU time the writing thread spent, known once it is stopped
 
     def _run(self, fn: Callable[..., Any], *args: Any) -> None:
         """``fn(*args)`` now, or on the writing thread after every job before it."""
@@ -137,6 +142,7 @@ class McapWriter:
         if th is not None:
             try:
                 th.stop()
+                self.thread_cpu_s = th.cpu_s
             except OSError:
                 if raise_error:
                     raise

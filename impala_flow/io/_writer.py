@@ -258,6 +258,11 @@ class MissionWriter:
         """Format -> what its writer wrote and could not write (counts)."""
         return {fw.profile: fw.summary() for fw in self._foreign}
 
+    @property
+    def thread_cpu_s(self) -> float:
+        """CPU seconds the second thread spent compressing and writing chunks (after :meth:`close`)."""
+        return self._mcap.thread_cpu_s
+
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress
         better: the writer does this by itself when a chunk fills up)."""

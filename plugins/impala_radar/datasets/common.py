@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import functools
-import heapq
 import io
 import math
 import queue
@@ -421,8 +420,26 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
         else:
             streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, frame="odom"))
                            for ti, (x, y, th) in zip(t.tolist(), xyt.tolist(), strict=True))
-    for t_ns, _, stream, msg in heapq.merge(*streams, key=lambda item: (item[0], item[1])):
+    if len(streams) == 1:
+        for t_ns, _, stream, msg in streams[0]:
+            yield t_ns, stream, msg
+        return
+    yield from _merge(streams[0], streams[1])
+
+
+def _merge(beams: Iterator, truth: Iterator) -> Iterator[tuple[int, str, impala_msgs.RadarBeam | msgs.Pose2D]]:
+    """``heapq.merge`` of the two streams by ``(t_ns, rank)``, each strictly increasing in time (beams
+    as :func:`_beams` keeps them, truth as checked): a truth pose goes before the first beam after it,
+    after a beam of its own time. Without a key call and a heap step per beam (160 000 a RADIATE head)."""
+    nxt = next(truth, None)
+    for t_ns, _, stream, msg in beams:
+        while nxt is not None and nxt[0] < t_ns:
+            yield nxt[0], nxt[2], nxt[3]
+            nxt = next(truth, None)
         yield t_ns, stream, msg
+    while nxt is not None:
+        yield nxt[0], nxt[2], nxt[3]
+        nxt = next(truth, None)
 
 
 def read_csv_columns(path: Path, columns: list[str]) -> tuple[list[str], np.ndarray]:
