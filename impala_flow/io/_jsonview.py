@@ -182,9 +182,9 @@ def _encoder(t: type, max_array: int) -> Any:
                     _building.discard(t)
                 scope_subs[f"S{i}"] = sub
                 inline[n] = f"(sub{i}(@) if type(@) is S{i} else text(@, m))"
-        src.append("    return " + " + ".join(
-            f"{k!r} + " + inline.get(n, inline.get(hints.get(n), "text(@, m)")).replace("@", f"v.{n}")
-            for k, n in zip(keys, names, strict=True)) + ' + "}"')
+        src.append('    return "".join((' + ", ".join(  # one join: no intermediate string per field
+            f"{k!r}, " + inline.get(n, inline.get(hints.get(n), "text(@, m)")).replace("@", f"v.{n}")
+            for k, n in zip(keys, names, strict=True)) + ', "}"))')
     else:
         src.append('    return "{}"')
     scope: dict[str, Any] = {"text": _text, "m": max_array, "get": operator.attrgetter(*names) if names else None,

@@ -24,6 +24,7 @@ import queue
 import struct
 import threading
 import time
+import weakref
 import zlib
 from collections import defaultdict
 from collections.abc import Callable
@@ -52,6 +53,7 @@ from ._mcapfile import MAGIC
 ZSTD_LEVEL = 2
 _MSG = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log_time, publish_time
 _pack_msg, _OP_MESSAGE = _MSG.pack, int(Opcode.MESSAGE)  # the enum's attribute read once, not per message
+_pack_msg_into, _HEAD = _MSG.pack_into, bytes(_MSG.size)  # a record's head, filled in once its payload is in
 _CHUNK = struct.Struct("<BQQQQI")  # opcode, length, start, end, uncompressed size, crc
 _U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
 _FOOTER = struct.Struct("<BQQQ")
@@ -71,6 +73,9 @@ class _WritingThread:
         self._q: queue.Queue = queue.Queue(maxsize=QUEUE_JOBS)
         self._thread = threading.Thread(target=self._run, name="impala-mcap-writer", daemon=True)
         self._thread.start()
+        # a writer never closed still gets what it handed over written: when it is dropped, or at exit
+        # (before daemon threads are stopped)
+        self._drain = weakref.finalize(self, _drain, self._q, self._thread)
 
     def _run(self) -> None:
         while True:
@@ -96,10 +101,14 @@ class _WritingThread:
 
     def stop(self) -> None:
         """Wait until every job submitted is written (or dropped after an error); raise that error."""
-        if self._thread.is_alive():
-            self._q.put(None)
-            self._thread.join()
+        self._drain()
         self._raise()
+
+
+def _drain(q: queue.Queue, thread: threading.Thread) -> None:
+    if thread.is_alive():
+        q.put(None)
+        thread.join()
 
 
 class McapWriter:
@@ -179,24 +188,26 @@ class McapWriter:
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         self._record(Metadata(name=name, metadata=data), name)
 
-    def add_message(self, channel_id: int, t_ns: int, parts: list, size: int,
-                    seq: int) -> None:
-        """Append one message whose payload is the concatenation of ``parts`` (``size``
-        bytes): each part is copied once, into the chunk. Nothing else per message: the
-        chunk's time span and the counts are taken from its index when it is cut."""
+    def add_message(self, channel_id: int, t_ns: int, parts: list, seq: int) -> None:
+        """Append one message whose payload is the concatenation of ``parts`` (bytes or any
+        buffers, each copied once, into the chunk; its length is known once they are in, and
+        written into the record's head then). Nothing else per message: the chunk's time span
+        and the counts are taken from its index when it is cut."""
         buf = self._buf
         idx = self._index.get(channel_id)
         if idx is None:
             idx = self._index[channel_id] = []
-        idx += (t_ns, len(buf))
-        buf += _pack_msg(_OP_MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
+        off = len(buf)
+        idx += (t_ns, off)
+        buf += _HEAD
         for p in parts:
             buf += p
+        _pack_msg_into(buf, off, _OP_MESSAGE, len(buf) - off - 9, channel_id, seq, t_ns, t_ns)
         if len(buf) >= self._chunk_size:
             self.flush_chunk()
 
-    def add_messages(self, channel_id: int, t_ns: int, parts: list, size: int, seq: int,
-                     channel_id2: int, payload2: bytes) -> None:
+    def add_messages(self, channel_id: int, t_ns: int, parts: list, seq: int, channel_id2: int,
+                     payload2: bytes) -> None:
         """:meth:`add_message` of two messages of the same time and sequence (a sample and its
         mirror), the second's payload one buffer: one call instead of two."""
         buf = self._buf
@@ -204,10 +215,12 @@ class McapWriter:
         idx = index.get(channel_id)
         if idx is None:
             idx = index[channel_id] = []
-        idx += (t_ns, len(buf))
-        buf += _pack_msg(_OP_MESSAGE, 22 + size, channel_id, seq, t_ns, t_ns)
+        off = len(buf)
+        idx += (t_ns, off)
+        buf += _HEAD
         for p in parts:
             buf += p
+        _pack_msg_into(buf, off, _OP_MESSAGE, len(buf) - off - 9, channel_id, seq, t_ns, t_ns)
         if len(buf) >= self._chunk_size:
             self.flush_chunk()
             buf, index = self._buf, self._index

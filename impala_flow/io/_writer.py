@@ -184,7 +184,7 @@ class MissionWriter:
 
     def _write_foreign(self, messages: Any, of: str) -> None:
         for ch, t_ns, payload in messages:
-            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], len(payload), 0)
+            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], 0)
 
     @property
     def topics(self) -> dict[str, type]:
@@ -211,22 +211,17 @@ class MissionWriter:
         seq &= 0xFFFFFFFF
         mirror = tp.mirror
         if self.native:
-            parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
-            size = 0
-            for p in parts:  # bytes, or arrays' memoryviews
-                c = type(p)
-                size += len(p) if c is bytes else p.nbytes if c is memoryview else memoryview(p).nbytes
+            parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]  # bytes, arrays' memoryviews
             if mirror is not None and not self._foreign:  # the common case: the sample and its mirror, one call
-                self._mcap.add_messages(tp.channel_id, t_ns, parts, size, seq, tp.mirror_id,
-                                        mirror.convert(data, t_ns))
+                self._mcap.add_messages(tp.channel_id, t_ns, parts, seq, tp.mirror_id, mirror.convert(data, t_ns))
                 mirror = None
             else:
-                self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
+                self._mcap.add_message(tp.channel_id, t_ns, parts, seq)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)
         if mirror is not None:
             pb = mirror.convert(data, t_ns)
-            self._mcap.add_message(tp.mirror_id, t_ns, [pb], len(pb), seq)
+            self._mcap.add_message(tp.mirror_id, t_ns, [pb], seq)
         tp.count += 1
         if self._flush_period_s is not None:
             now = time.monotonic()
@@ -252,7 +247,7 @@ class MissionWriter:
                                                       {MIRROR_KEY: FRAMES_MIRROR_OF})
             self._tf = tf
         pb = self._tf.convert(transforms, t_ns)
-        self._mcap.add_message(self._tf_id, t_ns, [pb], len(pb), 0)
+        self._mcap.add_message(self._tf_id, t_ns, [pb], 0)
 
     def foreign_summary(self) -> dict[str, dict[str, Any]]:
         """Format -> what its writer wrote and could not write (counts)."""

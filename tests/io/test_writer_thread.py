@@ -105,3 +105,32 @@ def test_a_graphs_recorder_writes_the_same_file_with_one_or_two_threads(tmp_path
     with MissionReader(two) as r:
         assert [m.data for m in r.messages(["src/out"])] == [float(i) for i in range(30000)]
         assert r.info().chunk_count > 50
+
+
+UNCLOSED = """
+import sys
+import impala_msgs
+from impala_flow.io import MissionWriter, run_codecs
+w = MissionWriter(sys.argv[1], codecs=run_codecs(), chunk_size=1024, threads=int(sys.argv[2]))
+w.add_topic("odo/speed", impala_msgs.Speed)
+for i in range(20_000):
+    w.write("odo/speed", i, impala_msgs.Speed(float(i)))
+"""  # the process ends without close()
+
+
+def test_a_writer_never_closed_leaves_every_chunk_it_cut_with_two_threads_as_with_one(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root), str(root / "plugins")]))
+    recovered = []
+    for threads in (1, 2):
+        path = tmp_path / f"unclosed-{threads}.mcap"
+        subprocess.run([sys.executable, "-c", UNCLOSED, str(path), str(threads)], env=env, check=True, timeout=120)
+        with MissionReader(path) as r:
+            info = r.info()
+            assert info.truncated
+            recovered.append(info.recovered_count)
+            assert [m.data.speed_mps for m in r.messages()] == [float(i) for i in range(info.recovered_count or 0)]
+    assert recovered[0] == recovered[1] and recovered[1] > 19_000
