@@ -9,8 +9,15 @@
   (payload -> RadarBeam), freeze, validity check (``invalid_reason`` on the input), executor
   (heap, ports, process calls: the rest).
 - import: ``impala-flow import radiate FOLDER -o X.mcap`` in a subprocess; scans/s on CPU
-  time (the child's user + system) and on wall time (the chunk compression runs on a second
-  thread), and whether the file is byte-identical to a second import.
+  time (the child's user + system) and on wall time (start-up included; PNGs are read on a
+  read-ahead thread, chunks compressed and written on the writer's thread), its peak RSS, and
+  whether the file is byte-identical to a second import.
+- import split (:func:`import_split`, in this process, ms of CPU per scan on the first scans):
+  the read-ahead thread (PNG inflation, counts to power), on the main thread the beams and truth
+  made by the reader, the writer's encode (native payload), mirror (the JSON view) and chunk
+  (records into the chunk) shares (profile-derived, scaled to the measured total), and the
+  writer thread's compression and writing; the rest of the import's CPU is start-up and the
+  engine (delivery, validity, freeze, executor, the recorder component).
 
 The last line is one JSON object (keys with units). The lead's summary bench imports
 :func:`bench_replay` and :func:`bench_import_radiate`.
@@ -108,6 +115,64 @@ def bench_replay(mission_path: str, end_s: float = 0.0, repeat: int = 3) -> dict
             "replay_beams": n, **{f"replay_{k}_us_per_beam": round(v * us, 2) for k, v in split.items()}}
 
 
+def import_split(folder: str, out_dir: str, scans: int = 100) -> dict[str, float]:
+    """CPU ms per scan of the import's stages on the first ``scans`` scans of ``folder`` (module doc)."""
+    import itertools
+
+    import impala_msgs
+    from impala_flow import msgs
+    from impala_flow.io import MissionWriter, run_codecs
+    from impala_radar.datasets.common import ImportReport, iter_mission
+    from impala_radar.datasets.component import RadiateScans
+
+    src = RadiateScans("radiate", folder=folder)
+    src.open()
+    beams = scans * src.dataset.config.beams_per_turn
+    c0, p0 = time.thread_time(), time.process_time()
+    items = list(itertools.islice(iter_mission(src.dataset, ImportReport(), db_per_count=src.db_per_count), beams))
+    source = time.thread_time() - c0
+    read = time.process_time() - p0 - source  # the read-ahead thread's
+    n = sum(1 for _, stream, _ in items if stream == "beams") / src.dataset.config.beams_per_turn
+    codecs = run_codecs()
+
+    def write(profile: cProfile.Profile | None = None) -> tuple[float, float]:
+        w = MissionWriter(Path(out_dir) / "split.mcap", codecs=codecs, json_views=True, flush_period_s=None)
+        w.add_topic("radiate/beams", impala_msgs.RadarBeam)
+        w.add_topic("radiate/truth", msgs.Pose2D)
+        c = time.thread_time()
+        if profile is not None:
+            profile.enable()
+        for t_ns, stream, m in items:
+            w.write("radiate/" + stream, t_ns, m)
+        w.close()
+        if profile is not None:
+            profile.disable()
+        return time.thread_time() - c, w.thread_cpu_s
+
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    main_s, thread_s = min(write() for _ in range(3))
+    prof = cProfile.Profile()
+    write(prof)
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    cum = {"encode": 0.0, "mirror": 0.0, "total": 0.0}
+    for (file, _, func), (_, _, _, ct, _) in stats.items():
+        if file.endswith("io/_writer.py") and func == "write":
+            cum["total"] = max(cum["total"], ct)
+        elif file.endswith("io/_codec.py") and func in ("encode_parts", "encode"):
+            cum["encode"] = max(cum["encode"], ct)
+        elif func == "convert" or func.endswith("_json_convert"):
+            cum["mirror"] = max(cum["mirror"], ct)
+    total = cum["total"] or 1.0
+    enc, mir = cum["encode"] / total * main_s, cum["mirror"] / total * main_s
+    per = 1e3 / n
+    return {"import_split_scans": round(n), "import_read_thread_ms_per_scan": round(read * per, 2),
+            "import_source_ms_per_scan": round(source * per, 2),
+            "import_writer_encode_ms_per_scan": round(enc * per, 2),
+            "import_writer_mirror_ms_per_scan": round(mir * per, 2),
+            "import_writer_chunk_ms_per_scan": round((main_s - enc - mir) * per, 2),
+            "import_writer_thread_ms_per_scan": round(thread_s * per, 2)}
+
+
 def _import_once(folder: str, out: Path, tree: Path) -> tuple[float, float]:
     env = dict(os.environ, OMP_NUM_THREADS="1",
                PYTHONPATH=os.pathsep.join([str(tree), str(tree / "plugins"), os.environ.get("PYTHONPATH", "")]))
@@ -134,7 +199,8 @@ def bench_import_radiate(folder: str, out_dir: str, tree: str | None = None) -> 
     same = outs[0].read_bytes() == outs[1].read_bytes()
     return {"import_radiate_scans": scans, "import_radiate_scans_per_s": round(scans / wall, 1),
             "import_radiate_cpu_scans_per_s": round(scans / cpu, 1), "import_radiate_cpu_s": round(cpu, 2),
-            "import_radiate_wall_s": round(wall, 2), "import_radiate_repeatable": same}
+            "import_radiate_wall_s": round(wall, 2), "import_radiate_repeatable": same,
+            "import_peak_rss_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -154,7 +220,16 @@ def main(argv: list[str] | None = None) -> int:
         res.update(bench_import_radiate(a.radiate, a.out))
         print(f"import radiate ({res['import_radiate_scans']} scans): {res['import_radiate_scans_per_s']} scans/s "
               f"wall, {res['import_radiate_cpu_scans_per_s']} scans/s of CPU ({res['import_radiate_cpu_s']} s); "
-              f"two imports byte-identical: {res['import_radiate_repeatable']} (target >= 50 scans/s)")
+              f"two imports byte-identical: {res['import_radiate_repeatable']} (target >= 50 scans/s); "
+              f"peak RSS {res['import_peak_rss_mb']} MB")
+        res.update(import_split(a.radiate, a.out))
+        print(f"import split, CPU ms per scan (first {res['import_split_scans']} scans): read-ahead thread "
+              f"{res['import_read_thread_ms_per_scan']}; main thread: reader's beams {res['import_source_ms_per_scan']}"
+              f" + writer encode {res['import_writer_encode_ms_per_scan']} + mirror "
+              f"{res['import_writer_mirror_ms_per_scan']} + chunk {res['import_writer_chunk_ms_per_scan']}; writer "
+              f"thread (compress, write) {res['import_writer_thread_ms_per_scan']}; the rest of "
+              f"{1e3 * res['import_radiate_cpu_s'] / res['import_radiate_scans']:.1f} ms per scan of the import's "
+              "CPU: start-up and the engine")
     res["peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
     print(f"peak RSS {res['peak_rss_mb']} MB")
     print(json.dumps(res))

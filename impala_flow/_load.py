@@ -82,7 +82,8 @@ COMPONENT_KEYS = ("type", "params", "on_error", "description", "override", "inpu
 #: what a graph may set of a component's input (``inputs: {name: {...}}``)
 INPUT_KEYS = ("maxsize", "overflow", "maxbytes")
 CLOCK_KEYS = ("mode", "speed")
-RECORD_KEYS = ("path", "streams", "compression", "foxglove", "ros2", "chunk_size", "maxsize", "flush_period_s")
+RECORD_KEYS = ("path", "streams", "compression", "foxglove", "ros2", "chunk_size", "maxsize", "flush_period_s",
+               "threads")
 #: most bytes of a graph with all its includes (validation stays well under a second)
 MAX_GRAPH_BYTES = 2 * MAX_BYTES
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")

@@ -225,6 +225,8 @@ def graph_schema(registry: Registry) -> dict[str, Any]:
                                    "description": "close a chunk at least this often (wall s); 0: by size only"},
                 "maxsize": {"type": "integer", "minimum": 1, "maximum": 1 << 16,
                             "description": "samples queued per recorded stream before its producer blocks"},
+                "threads": {"type": "integer", "minimum": 1, "maximum": 2, "description":
+                            "2: chunks compressed and written on a second thread (the same bytes as 1)"},
             },
         },
     }

@@ -105,6 +105,7 @@ def _dumps(x: Any) -> str:
 
 _SCALARS = frozenset({int, float, str, bool, type(None)})
 _encoders: dict[tuple[type, int], Any] = {}  # (dataclass type, max_array) -> its generated encoder
+_building: set[type] = set()  # types whose encoder is being generated (a type nesting itself goes through _text)
 
 
 def _text(v: Any, max_array: int) -> str:
@@ -160,6 +161,7 @@ def _encoder(t: type, max_array: int) -> Any:
     keys = [_str(n) + ":" for n in names]
     keys = ["{" + keys[0]] + ["," + k for k in keys[1:]] if keys else []
     src = ["def enc(v):"]
+    scope_subs: dict[str, Any] = {}
     if memo:
         src += ["    vals = get(v)", "    last = cell[0]",
                 "    if last is not None and all(map(is_, vals, last[0])):", "        return last[1]",
@@ -170,14 +172,25 @@ def _encoder(t: type, max_array: int) -> Any:
         inline = {float: "(fr(@) if type(@) is float and @ - @ == 0.0 else text(@, m))",
                   int: "(ir(@) if type(@) is int else text(@, m))",
                   np.ndarray: "(atext(@, m) if type(@) is ndarray else text(@, m))"}
-        src.append("    return " + " + ".join(
-            f"{k!r} + " + inline.get(hints.get(n), "text(@, m)").replace("@", f"v.{n}")
-            for k, n in zip(keys, names, strict=True)) + ' + "}"')
+        for i, n in enumerate(names):  # a nested message (a beam's config): its own encoder, called straight
+            sub = hints.get(n)
+            if isinstance(sub, type) and sub is not t and sub not in _building and dataclasses.is_dataclass(sub):
+                _building.add(t)
+                try:
+                    scope_subs[f"sub{i}"] = _encoders.get((sub, max_array)) or _encoder(sub, max_array)
+                finally:
+                    _building.discard(t)
+                scope_subs[f"S{i}"] = sub
+                inline[n] = f"(sub{i}(@) if type(@) is S{i} else text(@, m))"
+        src.append('    return "".join((' + ", ".join(  # one join: no intermediate string per field
+            f"{k!r}, " + inline.get(n, inline.get(hints.get(n), "text(@, m)")).replace("@", f"v.{n}")
+            for k, n in zip(keys, names, strict=True)) + ', "}"))')
     else:
         src.append('    return "{}"')
     scope: dict[str, Any] = {"text": _text, "m": max_array, "get": operator.attrgetter(*names) if names else None,
                              "cell": [None], "is_": operator.is_, "scalars": _SCALARS,
-                             "fr": float.__repr__, "ir": int.__repr__, "atext": _array_text, "ndarray": np.ndarray}
+                             "fr": float.__repr__, "ir": int.__repr__, "atext": _array_text, "ndarray": np.ndarray,
+                             **scope_subs}
     if memo and len(names) == 1:
         scope["get"] = lambda v, n=names[0]: (getattr(v, n),)
     exec("\n".join(src), scope)  # noqa: S102 - generated from field names (identifiers) only

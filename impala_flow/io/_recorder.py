@@ -43,7 +43,10 @@ class Recorder(Component):
                  "OccupancyGrid, radar_msgs, Image, /tf as tf2_msgs; ros2msg schemas, CDR): 'beside' the native "
                  "channels, or 'only' them (a file `ros2 bag play` plays, without native channels or mirrors)")
     chunk_size = Param(int, default=1 << 20, ge=1024, le=1 << 28,
-                       doc="bytes per chunk before compression (the writer holds at most one chunk)")
+                       doc="bytes per chunk before compression (the writer holds at most four: the one filling, "
+                       "two waiting for its thread, one being compressed)")
+    threads = Param(int, default=2, ge=1, le=2, doc="2: chunks compressed and written on a second thread while the "
+                    "next one fills (the same bytes as 1)")
     maxsize = Param(int, default=4096, ge=1, le=1 << 16, doc="samples queued per input before blocking")
     flush_period_s = Param(float, default=1.0, ge=0.0,
                            doc="also close a chunk every this many wall seconds (crash safety of slow "
@@ -76,7 +79,8 @@ class Recorder(Component):
         self.writer = MissionWriter(self.path, codecs=self.codecs, flush_period_s=self.flush_period_s or None,
                                     compression=self.compression, chunk_size=self.chunk_size,
                                     metadata=meta, foxglove=self.foxglove, json_views=self.json_views,
-                                    foreign=("ros2",) if self.ros2 else (), native=self.ros2 != "only")
+                                    foreign=("ros2",) if self.ros2 else (), native=self.ros2 != "only",
+                                    threads=self.threads)
         self.recorded: dict[str, int] = {}
         self._frames = self._frame_children()
         if len(self.radar_mount) != 4 or not all(isinstance(v, (int, float)) for v in self.radar_mount):

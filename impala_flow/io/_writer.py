@@ -3,7 +3,9 @@
 One channel per stream (topic ``component/port``), ``log_time`` = ``publish_time`` = the
 sample timestamp (int ns). Chunks go to the operating system as soon as they are full
 (the file is opened unbuffered), and at least every ``flush_period_s`` of wall time, so a
-process killed with SIGKILL leaves a file readable up to its last complete chunk.
+process killed with SIGKILL leaves a file readable up to its last complete chunk. With
+``threads=2`` (the default) chunks are compressed and written on a second thread, in order,
+as soon as they are cut: the same bytes, the caller's thread free for the next chunk.
 """
 
 from __future__ import annotations
@@ -85,16 +87,23 @@ class MissionWriter:
     with ``native=False`` only in them (no native channel, no mirror: a file other tools play back
     as it is, its header profile the format's). A format no plugin registers is a CodecError
     naming the plugin and its pip line.
+
+    ``threads``: 2 compresses and writes each chunk on a second thread while the caller fills the
+    next one (the file's bytes are the same as with 1; an error there is raised at the next
+    write or at :meth:`close`, naming the file). :meth:`close` waits for it.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, codecs: CodecRegistry,
                  compression: str = "zstd", chunk_size: int = 1 << 20,
                  metadata: dict[str, dict[str, str]] | None = None, foxglove: bool = True,
                  json_views: bool = False,
-                 flush_period_s: float | None = 1.0, foreign: tuple[str, ...] = (), native: bool = True) -> None:
+                 flush_period_s: float | None = 1.0, foreign: tuple[str, ...] = (), native: bool = True,
+                 threads: int = 2) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {sorted(COMPRESSIONS)}, "
                              f"not {compression!r}")
+        if threads not in (1, 2):
+            raise ValueError(f"threads must be 1 or 2, not {threads!r}")
         if not native and not foreign:
             raise ValueError("native=False needs a foreign output format (nothing would be written)")
         self.path = os.fspath(path)
@@ -114,7 +123,8 @@ class MissionWriter:
         self._tf: Mirror | None = None  # the frame-tree mirror, once its channel is declared
         self._schemas: dict[tuple[str, str, bytes], int] = {}
         self._file = _UnbufferedFile(self.path)
-        self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression])
+        self._mcap = McapWriter(self._file, int(chunk_size), COMPRESSIONS[compression], threads=threads,
+                                name=self.path)
         self._mcap.start(profile=PROFILE if native else self._foreign[0].profile, library="impala-flow")
         self._closed = False
         for name, data in (metadata or {}).items():
@@ -174,7 +184,7 @@ class MissionWriter:
 
     def _write_foreign(self, messages: Any, of: str) -> None:
         for ch, t_ns, payload in messages:
-            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], len(payload), 0)
+            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], 0)
 
     @property
     def topics(self) -> dict[str, type]:
@@ -199,18 +209,19 @@ class MissionWriter:
         if t_ns < 0:
             raise ValueError(f"topic {topic!r}: negative timestamp {t_ns} ns")
         seq &= 0xFFFFFFFF
+        mirror = tp.mirror
         if self.native:
-            parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]
-            size = 0
-            for p in parts:  # bytes, or arrays' memoryviews
-                c = type(p)
-                size += len(p) if c is bytes else p.nbytes if c is memoryview else memoryview(p).nbytes
-            self._mcap.add_message(tp.channel_id, t_ns, parts, size, seq)
+            parts = tp.parts(data) if tp.parts is not None else [tp.codec.encode(data)]  # bytes, arrays' memoryviews
+            if mirror is not None and not self._foreign:  # the common case: the sample and its mirror, one call
+                self._mcap.add_messages(tp.channel_id, t_ns, parts, seq, tp.mirror_id, mirror.convert(data, t_ns))
+                mirror = None
+            else:
+                self._mcap.add_message(tp.channel_id, t_ns, parts, seq)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)
-        if tp.mirror is not None:
-            pb = tp.mirror.convert(data, t_ns)
-            self._mcap.add_message(tp.mirror_id, t_ns, [pb], len(pb), seq)
+        if mirror is not None:
+            pb = mirror.convert(data, t_ns)
+            self._mcap.add_message(tp.mirror_id, t_ns, [pb], seq)
         tp.count += 1
         if self._flush_period_s is not None:
             now = time.monotonic()
@@ -236,11 +247,16 @@ class MissionWriter:
                                                       {MIRROR_KEY: FRAMES_MIRROR_OF})
             self._tf = tf
         pb = self._tf.convert(transforms, t_ns)
-        self._mcap.add_message(self._tf_id, t_ns, [pb], len(pb), 0)
+        self._mcap.add_message(self._tf_id, t_ns, [pb], 0)
 
     def foreign_summary(self) -> dict[str, dict[str, Any]]:
         """Format -> what its writer wrote and could not write (counts)."""
         return {fw.profile: fw.summary() for fw in self._foreign}
+
+    @property
+    def thread_cpu_s(self) -> float:
+        """CPU seconds the second thread spent compressing and writing chunks (after :meth:`close`)."""
+        return self._mcap.thread_cpu_s
 
     def flush(self) -> None:
         """Close the chunk in progress and hand it to the OS (fewer, bigger chunks compress
@@ -258,7 +274,10 @@ class MissionWriter:
                 self._write_foreign(fw.finish(), "")
             self._mcap.finish()
         finally:
-            self._file.close()
+            try:
+                self._mcap.stop_thread(raise_error=False)  # after an error above: nothing writes the file any more
+            finally:
+                self._file.close()
 
     def __enter__(self) -> MissionWriter:
         return self

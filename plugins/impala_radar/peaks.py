@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy import ndimage, optimize
 
 __all__ = ["Peaks", "cfar_factor", "cfar_threshold", "find_peaks", "find_os_peaks", "peak_features"]
 
@@ -66,6 +65,8 @@ def cfar_factor(pfa: float, n_train: int, method: str = "ca", k: int | None = No
         i = np.arange(k)
         return float(np.sum(np.log(n_train - i) - np.log(n_train - i + alpha))) - math.log(pfa)
 
+    from scipy import optimize  # here, not at import (like ndimage below): 0.3 s paid by every command's start
+
     return float(optimize.brentq(log_pfa, 1e-6, 1e6))
 
 
@@ -83,6 +84,8 @@ def cfar_threshold(power: np.ndarray, pfa: float = 1e-4, train: int = 12, guard:
     n = 2 * train
     alpha = cfar_factor(pfa, n, method, k)
     if method == "ca":
+        from scipy import ndimage
+
         # sum over [-(g+t), g+t] minus sum over [-g, g]: two box filters
         outer = ndimage.uniform_filter1d(power, 2 * (guard + train) + 1, axis=-1, mode="reflect")
         inner = ndimage.uniform_filter1d(power, 2 * guard + 1, axis=-1, mode="reflect")
@@ -104,6 +107,8 @@ def cfar_threshold(power: np.ndarray, pfa: float = 1e-4, train: int = 12, guard:
 def find_peaks(power: np.ndarray, threshold: np.ndarray, min_bin: int = 0,
                neighbourhood: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """(beam, bin) of the local maxima (+-``neighbourhood`` bins) above ``threshold``."""
+    from scipy import ndimage
+
     local_max = ndimage.maximum_filter1d(power, 2 * neighbourhood + 1, axis=-1, mode="nearest")
     mask = (power >= local_max) & (power > threshold) & (power > 0)
     mask[:, :max(min_bin, 1)] = False

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import csv
 import functools
-import heapq
 import io
 import math
 import queue
@@ -348,7 +347,7 @@ def _read_ahead(ds: NavtechDataset, db_per_count: float) -> Iterator[_Read]:
 
 
 def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_count: float,
-           ) -> Iterator[tuple[int, int, str, impala_msgs.RadarBeam]]:
+           ) -> Iterator[tuple[int, str, impala_msgs.RadarBeam]]:
     last_t, noted = np.iinfo(np.int64).min, False
     for (k, path), (scan, power, err) in zip(enumerate(ds.scan_paths), _read_ahead(ds, db_per_count), strict=True):
         if err is not None:
@@ -387,7 +386,7 @@ def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_coun
         chirp = [0] * rows.size if scan.chirp is None else scan.chirp[rows].tolist()
         for i, ti, az, ch in zip(rows.tolist(), scan.t_ns[rows].tolist(), scan.azimuth_rad[rows].tolist(), chirp,
                                  strict=True):
-            yield ti, 0, "beams", impala_msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config, int(ch))
+            yield ti, "beams", impala_msgs.RadarBeam(az, k, i, power[i], _EMPTY, ds.config, int(ch))
 
 
 def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_bad: bool = False,
@@ -416,13 +415,31 @@ def iter_mission(ds: NavtechDataset, report: ImportReport | None = None, skip_ba
                                    f"t = {t_text(int(t[bad[0]]))} s is not finite")
         report.truth_poses = len(t)
         if len(truth) > 2:
-            streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, c, frame="odom"))
+            streams.append((int(ti), "truth", msgs.Pose2D(x, y, th, c, frame="odom"))
                            for ti, (x, y, th), c in zip(t.tolist(), xyt.tolist(), truth[2], strict=True))
         else:
-            streams.append((int(ti), 1, "truth", msgs.Pose2D(x, y, th, frame="odom"))
+            streams.append((int(ti), "truth", msgs.Pose2D(x, y, th, frame="odom"))
                            for ti, (x, y, th) in zip(t.tolist(), xyt.tolist(), strict=True))
-    for t_ns, _, stream, msg in heapq.merge(*streams, key=lambda item: (item[0], item[1])):
-        yield t_ns, stream, msg
+    if len(streams) == 1:
+        yield from streams[0]
+    else:
+        yield from _merge(streams[0], streams[1])
+
+
+def _merge(beams: Iterator, truth: Iterator) -> Iterator[tuple[int, str, impala_msgs.RadarBeam | msgs.Pose2D]]:
+    """The two streams merged by ``(t_ns, beams first)``, as ``heapq.merge`` would, each strictly increasing
+    in time (beams as :func:`_beams` keeps them, truth as checked): a truth pose goes before the first beam
+    after it, after a beam of its own time. Without a key call and a heap step per beam (160 000 a RADIATE
+    head)."""
+    nxt = next(truth, None)
+    for item in beams:
+        while nxt is not None and nxt[0] < item[0]:
+            yield nxt
+            nxt = next(truth, None)
+        yield item
+    if nxt is not None:
+        yield nxt
+        yield from truth
 
 
 def read_csv_columns(path: Path, columns: list[str]) -> tuple[list[str], np.ndarray]:

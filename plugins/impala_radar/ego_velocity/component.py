@@ -4,6 +4,8 @@ what it follows, is described in :mod:`impala_radar.ego_velocity.core`.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
@@ -42,6 +44,7 @@ class EgoVelocity(Component):
                           doc="added in quadrature to the formal std (peak-interpolation bias: -3 mm/s measured)")
 
     def start(self) -> None:
+        importlib.import_module("scipy.optimize")  # before the first sample (core imports it where it fits)
         self.last_fit: EgoFit | None = None
         self.estimates = 0
         self.skipped = 0

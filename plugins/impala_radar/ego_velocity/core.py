@@ -40,7 +40,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from impala_msgs import RadarDetections
 
@@ -98,6 +97,8 @@ def fit_ego_velocity(azimuth_rad, radial_mps, *, range_m=None, radar_height_m: f
         return basis[ok] @ p - v[ok]
 
     p0 = np.linalg.lstsq(basis[ok], v[ok], rcond=None)[0]
+    from scipy.optimize import least_squares  # here, not at import: 0.3 s paid by every command's start
+
     p = least_squares(resid, p0, loss=loss, f_scale=f_scale_mps).x
     res = fac * (trig @ p)[:, None] - v[:, None]  # (n, K): residual under each height
     r = res[np.arange(len(v)), np.argmin(np.abs(res), axis=1)]

@@ -4,6 +4,7 @@ what it follows, is described in :mod:`impala_radar.extractor.core`.
 
 from __future__ import annotations
 
+import importlib
 import time
 
 import numpy as np
@@ -50,6 +51,8 @@ class PeakExtractor(Component):
                               doc="a partial last turn is extracted if it holds this fraction of a turn")
 
     def start(self) -> None:
+        for m in ("scipy.ndimage", "scipy.optimize"):  # before the first turn (core, peaks import them where used)
+            importlib.import_module(m)
         self._turn = TurnBuffer()
         self.turns = 0
         self.points = 0

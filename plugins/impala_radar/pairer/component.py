@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
@@ -59,6 +61,8 @@ class FuzzyPairer(Component):
     rules = Param(list, default=[], doc="fuzzy rules replacing fuzzy.DEFAULT_RULES when not empty")
 
     def start(self) -> None:
+        for m in ("scipy.ndimage", "scipy.optimize"):  # before the first turn (peaks imports them where used)
+            importlib.import_module(m)
         self._turn = TurnBuffer()
         self.turns = 0
         self.partial_turns = 0

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
-from scipy.optimize import linear_sum_assignment
 
 from impala_msgs import SPEED_OF_LIGHT_MPS, RadarConfig
 
@@ -124,6 +123,8 @@ def assign_pairs(beam: np.ndarray, iu: np.ndarray, id_: np.ndarray, score: np.nd
         cost[ui, di] = -score[s:e] + 1e-3 * tiebreak[s:e]
         lut = np.full(cost.shape, -1)
         lut[ui, di] = np.arange(s, e)
+        from scipy.optimize import linear_sum_assignment  # here, not at import: 0.3 s paid by every command
+
         r, c = linear_sum_assignment(cost)
         sel = lut[r, c]
         chosen.append(sel[sel >= 0])

@@ -11,8 +11,6 @@ import numpy as np
 from impala_flow import Component, Input, Output, Param, Periodic
 from impala_flow.msgs import Pose2D, RelativePose2D, Trajectory2D
 
-from .core import PoseGraphCore
-
 __all__ = ["PoseGraph"]
 
 
@@ -40,6 +38,8 @@ class PoseGraph(Component):
     loop_extra_updates = Param(int, default=3, ge=0, doc="extra iSAM2 updates after a loop closure")
 
     def start(self) -> None:
+        from .core import PoseGraphCore  # here, not at import: gtsam costs 0.2 s to import, paid by every command
+
         self.core = PoseGraphCore(self.solver, self.kernel, self.kernel_k, tuple(self.robust_kinds))
         self.used: dict[str, int] = {}
         self.ignored: dict[str, int] = {}

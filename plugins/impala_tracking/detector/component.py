@@ -4,6 +4,8 @@ what it follows, is described in :mod:`impala_tracking.detector.core`.
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 from impala_flow import Component, Input, Output, Param
@@ -54,6 +56,7 @@ class MoverDetector(Component):
     max_target_speed_mps = Param(float, default=25.0, gt=0, doc="persistence reach per second")
 
     def start(self) -> None:
+        importlib.import_module("scipy.sparse.csgraph")  # before the first turn (core imports it where it is used)
         self.clutter = ClutterMap(self.clutter_cell_m, self.clutter_tau_turns, self.clutter_rate)
         self._recent: list[tuple[int, np.ndarray]] = []
         self.turns = 0

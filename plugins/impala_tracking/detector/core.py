@@ -24,8 +24,6 @@ input (map frame from RTK-GPS or odometry; the radar's own frame without it).
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 __all__ = ["ground_radial_speed_mps", "cluster_candidates", "absorb_ghosts", "ClutterMap"]
 
@@ -54,6 +52,10 @@ def cluster_candidates(beam: np.ndarray, range_m: np.ndarray, v_mps: np.ndarray,
     near = ((db <= max_beam_gap) & (np.abs(range_m[:, None] - range_m[None, :]) <= max_range_gap_m)
             & (np.abs(v_mps[:, None] - v_mps[None, :]) <= max_speed_gap_mps))
     i, j = np.nonzero(near)
+    # here, not at import: scipy.sparse costs 0.2-0.4 s to import, paid by every command's start otherwise
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     _, labels = connected_components(coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n)), directed=False)
     return labels
 

@@ -7,8 +7,6 @@ from __future__ import annotations
 import importlib
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
-from scipy.special import ndtr
 
 from impala_flow import Component, Input, Output, Param
 from impala_msgs import ObjectStates, TrackExistence
@@ -60,9 +58,13 @@ class Tracker(Component):
         self.live: list[Track] = []
         self.next_id = 1
         self.turn = 0
-        # here, not at import: scipy.stats and filterpy cost 0.85 s to import, paid by graphs that track only,
-        # and before the first sample (a live run's first turn is not late)
+        # here, not at import: scipy.stats, scipy.optimize and filterpy cost 0.85 s to import (scipy.optimize
+        # 0.3 s more: every command's start paid it), paid by graphs that track only, and before the first
+        # sample (a live run's first turn is not late)
         from scipy.stats import chi2
+
+        importlib.import_module("scipy.optimize")
+        importlib.import_module("scipy.special")
 
         importlib.import_module("filterpy.kalman")
         self.gate_d2 = float(chi2.ppf(self.gate_prob, 3))
@@ -86,6 +88,8 @@ class Tracker(Component):
             ok = d2 <= self.gate_d2
             in_gate = ok.any(axis=0)
             cost = np.where(ok, d2 + logdet, 1e9)
+            from scipy.optimize import linear_sum_assignment  # loaded in start()
+
             rows, cols = linear_sum_assignment(cost)
             for r, c in zip(rows, cols, strict=True):
                 if ok[r, c]:
@@ -150,6 +154,8 @@ class Tracker(Component):
         m = float(u @ x[2:])
         s = float(np.sqrt(max(u @ p[2:, 2:] @ u, 1e-6)))
         b = self.blind_speed_mps
+        from scipy.special import ndtr  # loaded in start()
+
         return float(1.0 - (ndtr((b - m) / s) - ndtr((-b - m) / s)))
 
     def _predict(self, tr: Track, t_ns: int) -> None:
