@@ -16,6 +16,8 @@ __all__ = ["Shared", "resolved", "scratch", "shared_map"]
 
 
 _SCRATCH = threading.local()
+_SCRATCH_MAX_ARRAYS = 64  # per thread
+_SCRATCH_MAX_BYTES = 512 << 20  # per thread; cleared past it (a new geometry), never grown without bound
 
 
 def scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
@@ -28,9 +30,11 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.n
     key = (name, shape, np.dtype(dtype).str)
     a = pool.get(key)
     if a is None:
-        if len(pool) >= 64:  # shapes change only with the geometry: forget the old ones
+        a = np.empty(shape, dtype)
+        # shapes change only with the geometry: past the bounds, forget the old ones
+        if len(pool) >= _SCRATCH_MAX_ARRAYS or sum(v.nbytes for v in pool.values()) + a.nbytes > _SCRATCH_MAX_BYTES:
             pool.clear()
-        a = pool[key] = np.empty(shape, dtype)
+        pool[key] = a
     return a
 
 
