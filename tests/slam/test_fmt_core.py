@@ -183,3 +183,101 @@ def test_whitened_spectrum_is_the_cross_power_over_its_magnitude():
     mag = np.maximum(np.abs(cross), 1e-12 * np.abs(cross).max())
     np.testing.assert_allclose(core._whitened(fa, fb, weight), cross / mag * weight, rtol=1e-6, atol=1e-7)
     np.testing.assert_allclose(core._whitened(fa, fb, None), cross / mag, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("min_wavelength_m", [0.8, 0.0])  # the coarse search, the full grid
+def test_registrations_on_two_threads_are_the_one_threads(min_wavelength_m):
+    # slam.FmtRegistration runs a registration's independent correlations (the two candidates, the
+    # refinement's two neighbours) on `threads` threads: every transform the same bits with 1 and 2
+    from impala_flow.msgs import RelativePose2D
+    from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+    from impala_slam.fmt.component import FmtRegistration
+
+    rng = np.random.default_rng(5)
+    world = SyntheticWorld.random(rng, (-60, 60), (-60, 60), density_per_m2=0.02, n_clusters=12)
+    truth = [(0.6 * k, 0.1 * k, math.radians(1.5 * k)) for k in range(6)]
+    images = [(k * 250_000_000, "image", world.render(pose, rng, cell_m=0.1, radius_m=26.0))
+              for k, pose in enumerate(truth)]
+    params = dict(cell_m=0.2, size=256, range_min_m=2.5, range_max_m=25.0, taper_m=4.0,
+                  min_wavelength_m=min_wavelength_m)
+    got = {}
+    for threads in (1, 2):
+        fmt, sink = FmtRegistration("fmt", threads=threads, **params), CollectingSink("sink")
+        run_components(ScriptedSource("src", images), fmt, sink,
+                       connections=["src.image -> fmt.image", "fmt.transform -> sink.x"])
+        got[threads] = sink.values()
+        assert fmt.summary()["images"] == len(images)
+    for one, two in zip(got[1], got[2], strict=True):
+        assert isinstance(two, RelativePose2D)
+        assert (one.x_m, one.y_m, one.theta_rad, one.kind) == (two.x_m, two.y_m, two.theta_rad, two.kind)
+        np.testing.assert_array_equal(one.cov_xyt, two.cov_xyt)
+    # and they are the motion (each image's pose in the previous one's frame), to within this sparse world's
+    # registration error (the other tests of this file hold the accuracy)
+    from impala_slam.se2 import between
+
+    steps = [r for r in got[2] if r.kind == "registration"]
+    assert len(steps) >= 4
+    for r in steps:
+        k = r.to_t_ns // 250_000_000
+        want = between(truth[k - 1], truth[k])
+        assert math.hypot(r.x_m - want[0], r.y_m - want[1]) < 0.3
+        assert abs(math.degrees(r.theta_rad - want[2])) < 1.0
+
+
+def test_last_refinement_interpolated_only_when_the_three_rotations_agree():
+    # on the full grid, the refinement's last translation is the parabola through its three rotations' peaks
+    # when they lie within refine_agree_cells of each other: against the correlation at that rotation
+    p = FmtParams(cell_m=0.4, size=128, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, refine_agree_cells=0.25)
+    a, b = _images(p)
+    tr = core._Translator(a, b, p)
+    assert tr.rows is None
+    step = math.radians(p.refine_deg)
+    tol_m = p.refine_agree_cells * p.cell_m
+    theta = math.radians(3.5)
+    lo, mid, hi = (tr.translation(theta + k * step) for k in (-1, 0, 1))
+    assert core._agree(lo, mid, hi, tol_m)
+    for d in (-0.4, 0.0, 0.3):
+        got = core._interpolated(lo, mid, hi, d, theta + d * step)
+        want = tr.translation(theta + d * step)
+        assert got[1] == want[1]
+        assert math.hypot(got[2] - want[2], got[3] - want[3]) < 0.05 * p.cell_m
+        assert got[0] == pytest.approx(want[0], rel=0.03)
+        np.testing.assert_allclose(got[4], want[4], rtol=0.1, atol=0.05 * np.abs(want[4]).max())
+    # at 4.2 deg, the peak at 4.7 deg is 0.2 m off the other two (more than a quarter cell): not interpolated
+    theta = math.radians(4.2)
+    assert not core._agree(*(tr.translation(theta + k * step) for k in (-1, 0, 1)), tol_m)
+    # register: with the interpolation switched off, the last translation is the correlation's
+    off = register(a, b, FmtParams(**{**p.__dict__, "refine_agree_cells": 0.0}))
+    on = register(a, b, p)
+    assert off.theta_rad == on.theta_rad
+    assert (on.x_m, on.y_m) != (off.x_m, off.y_m)  # this pair's three rotations agree: interpolated
+    assert math.hypot(off.x_m - on.x_m, off.y_m - on.y_m) < 0.05 * p.cell_m
+    assert abs(off.x_m - 1.3) < 0.2 and abs(off.y_m + 0.4) < 0.2
+
+
+def test_compiled_two_by_two_mean_is_numpys():
+    from impala_slam.fmt._jit import mean2x2
+
+    rng = np.random.default_rng(2)
+    data = rng.exponential(1.0, (201, 157)).astype(np.float32) * np.float32(1e3)
+    h, w = 200, 156
+    want = data[:h, :w].reshape(h // 2, 2, w // 2, 2).mean(axis=(1, 3), dtype=np.float32)
+    pairs = data[:h, 0:w:2] + data[:h, 1:w:2]  # numpy's order of the sums (the mean above may sum otherwise)
+    exact = (pairs[0::2] + pairs[1::2]) / np.float32(4)
+    got = mean2x2(data, np.empty((h // 2, w // 2), np.float32))
+    np.testing.assert_array_equal(got, exact)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+@pytest.mark.parametrize("q", [0.9, 0.5, 0.999, 0.03])
+def test_quantile_is_numpys(q):
+    # the threshold of step 2: the two order statistics selected among the values over a bound, then numpy's
+    # interpolation of the two: the same number as np.quantile, on skewed, flat, tied and tiny arrays
+    rng = np.random.default_rng(4)
+    cases = [rng.exponential(1.0, 200_000), rng.random(50_000), rng.integers(0, 4, 30_000).astype(float),
+             rng.lognormal(0.0, 3.0, 100_001), rng.random(7), np.full(10_000, 2.5)]
+    power = _images()[0].image  # a prepared image's values too
+    cases.append(power[power > 0].astype(np.float64))
+    for x in cases:
+        x = x.astype(np.float32)
+        assert core._quantile(x.copy(), q) == float(np.quantile(x, q))

@@ -91,6 +91,8 @@ import scipy.fft
 
 from impala_flow.msgs import Grid
 
+from .parallel import TaskPool
+
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
            "phase_correlation"]
 
@@ -115,6 +117,9 @@ class FmtParams:
     min_snr: float = 6.0  # a translation peak weaker than this is not a registration
     refine_deg: float = 0.5  # step of the rotation refinement on the translation peak (0: Algorithm 1 only)
     min_wavelength_m: float = 0.0  # finest spatial wavelength in the translation correlation (0: up to Nyquist)
+    # the refinement's last translation interpolated when its three rotations' peaks are within this many cells
+    # of each other (on the full grid; 0: always correlated)
+    refine_agree_cells: float = 0.0
 
 
 @dataclass
@@ -218,16 +223,39 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
     if s < 1.0 and abs(1.0 / s - round(1.0 / s)) < 1e-6:  # integer reduction: average the cells
         k = int(round(1.0 / s))
         h, w = (data.shape[0] // k) * k, (data.shape[1] // k) * k
-        if k == 2:  # the mean below, summed in numpy's order (bit-identical), without its slow strided reduction
-            pairs = data[:h, 0:w:2] + data[:h, 1:w:2]  # (x00 + x01) + (x10 + x11)
-            data = pairs[0::2] + pairs[1::2]
-            data /= np.float32(4)
+        if k == 2:  # the mean below, summed in numpy's order (bit-identical), in one compiled pass
+            from ._jit import mean2x2
+
+            data = mean2x2(data, np.empty((h // 2, w // 2), np.float32))  # ((x00 + x01) + (x10 + x11)) / 4
         else:
             data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
                       [0.0, 1.0, (grid.origin_y_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2]])
         interp = cv2.INTER_LINEAR
     return cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def _quantile(vals: np.ndarray, q: float) -> float:
+    """``np.quantile(vals, q)`` (linear, the default method), the same number, ``vals`` reordered: the
+    two order statistics it interpolates are selected among the values at or above a bound taken
+    low on a sample (the exact ones whenever fewer values than the lower rank lie under it, else the
+    whole array is partitioned as numpy does), then numpy interpolates them with the same weight
+    (its virtual index (n - 1) q, here on two values: the same float64 fraction and formula)."""
+    n = vals.size
+    v = (n - 1) * q  # numpy's virtual index (float64), its floor and fraction
+    k = int(math.floor(v))
+    if n < 4096 or k + 1 >= n:
+        return float(np.quantile(vals, q, overwrite_input=True))
+    sample = vals[::64].copy()
+    j = max(int((q - 0.05) * (sample.size - 1)), 0)  # well under the sample's q-quantile
+    bound = np.partition(sample, j)[j]
+    top = vals[vals >= bound]
+    below = n - top.size
+    if below > k:  # the bound was not under the k-th value: numpy's own selection
+        return float(np.quantile(vals, q, overwrite_input=True))
+    top.partition((k - below, k - below + 1))
+    pair = np.array([top[k - below], top[k - below + 1]], vals.dtype)
+    return float(np.quantile(pair, v - k, overwrite_input=True))
 
 
 def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True) -> FmtImage:
@@ -242,12 +270,12 @@ def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = Tr
     if np.any(observed):
         vals = img[observed]
         if linear_power:
-            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))  # vals: a copy, reordered
+            level = _quantile(vals, p.db_floor_quantile)  # vals: a copy, reordered
             level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
             keep = img > level
             out[keep] = 10.0 * np.log10(img[keep] / level)
         else:
-            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))
+            level = _quantile(vals, p.db_floor_quantile)
             keep = img > level
             out[keep] = img[keep] - level
     out *= _taper(p)
@@ -499,25 +527,27 @@ def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR) -> 
 
 
 def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
-             prior_theta_rad: float | None = None) -> FmtResult:
+             prior_theta_rad: float | None = None, pool: TaskPool | None = None) -> FmtResult:
     """Steps 6-14: the pose of b's frame in a's (b's radar position and heading seen from a).
 
     ``prior_theta_rad`` (odometry) only breaks a tie between the two rotation candidates
-    whose translation peaks are within 10 % of each other."""
+    whose translation peaks are within 10 % of each other. ``pool``: threads for the
+    correlations that do not depend on each other (the two candidates, each refinement step's
+    two neighbours); the same result, bit for bit, with or without."""
     p = params or FmtParams()
     if not (np.any(a.image) and np.any(b.image)):
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
     theta0, snr_r, curv_r = _rotation(a, b, p)
-    tr = _Translator(a, b, p)
+    tr = _Translator(a, b, p, pool)
     fb = tr.spectrum(theta0)
+    cands = tr.translations([(theta0, fb), (theta0 + math.pi, np.conj(fb))])
     best = None
     # b turned by theta0 + pi is b turned by theta0 then by 180 deg about the centre cell, whose
     # spectrum is the conjugate (a real image), to the window's asymmetry (cv2's Hann is symmetric
     # about (n - 1) / 2, half a cell off the centre): the second candidate's translation without a
     # warp and transform of its own (the same choice of candidate and the same registrations on the
     # Oxford and RADIATE pairs; when it wins, the refinement warps around it anyway)
-    for theta, f in ((theta0, fb), (theta0 + math.pi, np.conj(fb))):
-        cand = tr.translation(theta, f)
+    for cand in cands:
         if best is None:
             best = cand
         elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
@@ -558,9 +588,9 @@ class _Translator:
     transforms a 4 times smaller image; the peak is still read at full resolution
     (:func:`_coarse_peak`)."""
 
-    def __init__(self, a: FmtImage, b: FmtImage, p: FmtParams):
+    def __init__(self, a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None = None):
         n = a.image.shape[0]
-        self.p, self.n, self.a, self.b = p, n, a, b
+        self.p, self.n, self.a, self.b, self.pool = p, n, a, b, pool
         self._final: dict[float, tuple] = {}
         lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
         self.cols, weight = _columns(a.image.shape, lp, True)
@@ -594,6 +624,13 @@ class _Translator:
         else:  # the search on the halved images: only the SNR is used (the translation is then final()'s)
             dy, dx, snr, h = _coarse_peak(self.fa, fb, self.weight, self.n, fit=False)
         return snr, theta, -dx * self.p.cell_m, -dy * self.p.cell_m, h
+
+    def translations(self, batch: list[tuple]) -> list[tuple]:
+        """:meth:`translation` of each ``(theta, fb)`` of the batch, in order (on the pool's threads:
+        each is computed from this pair's images alone, so in any order, the same numbers)."""
+        if self.pool is None:
+            return [self.translation(*args) for args in batch]
+        return self.pool.map(self.translation, batch)
 
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
         """The translation returned at rotation theta: on the coarse grid, from the full grid's
@@ -736,6 +773,9 @@ def _refine_rotation(tr: _Translator, best: tuple, step: float) -> tuple[tuple, 
         return done[t]
 
     for _ in range(3):
+        todo = [t for t in (theta - step, theta + step) if t not in done]
+        if len(todo) == 2 and tr.pool is not None:  # both neighbours at once, on the pool's threads
+            done.update(zip(todo, tr.translations([(t,) for t in todo]), strict=True))
         lo = at(theta - step)
         hi = at(theta + step)
         if lo[0] > mid[0] and lo[0] >= hi[0]:
@@ -748,8 +788,28 @@ def _refine_rotation(tr: _Translator, best: tuple, step: float) -> tuple[tuple, 
         if den >= 0:
             return mid, 0.0
         d = float(np.clip(0.5 * (lo[0] - hi[0]) / den, -0.5, 0.5))
+        agree_m = tr.p.refine_agree_cells * tr.p.cell_m
+        if tr.rows is None and agree_m > 0 and _agree(lo, mid, hi, agree_m):
+            return _interpolated(lo, mid, hi, d, theta + d * step), -den / step ** 2
         return tr.final(theta + d * step), -den / step ** 2
     return mid, 0.0
+
+
+def _agree(lo: tuple, mid: tuple, hi: tuple, tol_m: float) -> bool:
+    """The three rotations' translation peaks (x_m, y_m) within tol_m of each other."""
+    pts = [(c[2], c[3]) for c in (lo, mid, hi)]
+    return all(math.dist(u, v) <= tol_m for u, v in ((pts[0], pts[1]), (pts[1], pts[2]), (pts[0], pts[2])))
+
+
+def _interpolated(lo: tuple, mid: tuple, hi: tuple, d: float, theta: float) -> tuple:
+    """The translation peak at theta = mid's rotation + d steps (|d| <= 1/2) by the parabola
+    through lo, mid and hi (one step apart): its SNR (the refinement's own parabola at its
+    maximum), position and Hessian, each interpolated alike."""
+    def q(a, b, c):  # floats or 2x2 arrays
+        return b + d * 0.5 * (c - a) + d * d * 0.5 * (c - 2 * b + a)
+
+    return (float(q(lo[0], mid[0], hi[0])), theta, float(q(lo[2], mid[2], hi[2])), float(q(lo[3], mid[3], hi[3])),
+            q(lo[4], mid[4], hi[4]))
 
 
 def _covariance(p: FmtParams, snr_t: float, h: np.ndarray, snr_r: float, curv_r: float,
