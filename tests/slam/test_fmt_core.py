@@ -224,37 +224,6 @@ def test_registrations_on_two_threads_are_the_one_threads(min_wavelength_m):
         assert abs(math.degrees(r.theta_rad - want[2])) < 1.0
 
 
-def test_last_refinement_interpolated_only_when_the_three_rotations_agree():
-    # on the full grid, the refinement's last translation is the parabola through its three rotations' peaks
-    # when they lie within refine_agree_cells of each other: against the correlation at that rotation
-    p = FmtParams(cell_m=0.4, size=128, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, refine_agree_cells=0.25)
-    a, b = _images(p)
-    tr = core._Translator(a, b, p)
-    assert tr.rows is None
-    step = math.radians(p.refine_deg)
-    tol_m = p.refine_agree_cells * p.cell_m
-    theta = math.radians(3.5)
-    lo, mid, hi = (tr.translation(theta + k * step) for k in (-1, 0, 1))
-    assert core._agree(lo, mid, hi, tol_m)
-    for d in (-0.4, 0.0, 0.3):
-        got = core._interpolated(lo, mid, hi, d, theta + d * step)
-        want = tr.translation(theta + d * step)
-        assert got[1] == want[1]
-        assert math.hypot(got[2] - want[2], got[3] - want[3]) < 0.05 * p.cell_m
-        assert got[0] == pytest.approx(want[0], rel=0.03)
-        np.testing.assert_allclose(got[4], want[4], rtol=0.1, atol=0.05 * np.abs(want[4]).max())
-    # at 4.2 deg, the peak at 4.7 deg is 0.2 m off the other two (more than a quarter cell): not interpolated
-    theta = math.radians(4.2)
-    assert not core._agree(*(tr.translation(theta + k * step) for k in (-1, 0, 1)), tol_m)
-    # register: with the interpolation switched off, the last translation is the correlation's
-    off = register(a, b, FmtParams(**{**p.__dict__, "refine_agree_cells": 0.0}))
-    on = register(a, b, p)
-    assert off.theta_rad == on.theta_rad
-    assert (on.x_m, on.y_m) != (off.x_m, off.y_m)  # this pair's three rotations agree: interpolated
-    assert math.hypot(off.x_m - on.x_m, off.y_m - on.y_m) < 0.05 * p.cell_m
-    assert abs(off.x_m - 1.3) < 0.2 and abs(off.y_m + 0.4) < 0.2
-
-
 def test_compiled_two_by_two_mean_is_numpys():
     from impala_slam.fmt._jit import mean2x2
 

@@ -53,7 +53,7 @@ from impala_flow import Input, OutOfHistory, Output, Param, Periodic
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D, Trajectory2D
 
 from ..fmt.component import UNKNOWN_COV, FmtComponent
-from ..fmt.core import FmtImage, FmtParams, polar_spectrum, prepare, register
+from ..fmt.core import FmtImage, FmtParams, polar_spectrum, prepare, register, warm_up
 from ..se2 import between
 from ..tilemap import TileMap, warp_grid_to_map
 from .core import PoseEkf
@@ -129,6 +129,7 @@ class EkfSlam(FmtComponent):
 
     def start(self) -> None:
         self.params_fmt: FmtParams = self.fmt_params()
+        warm_up()  # FMT's compiled loop loaded here, not in the first turn
         self.ekf: PoseEkf | None = None
         self.t_ns: list[int] = []
         self._index: dict[int, int] = {}  # image time -> pose index

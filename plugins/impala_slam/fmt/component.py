@@ -28,7 +28,7 @@ from impala_flow import Component, Input, Output, Param
 from impala_flow.msgs import Grid, Pose2D, RelativePose2D
 
 from ..se2 import compose
-from .core import FmtImage, FmtParams, prepare, register
+from .core import FmtImage, FmtParams, prepare, register, warm_up
 from .parallel import TaskPool
 
 __all__ = ["FmtRegistration", "FmtComponent", "UNKNOWN_COV"]
@@ -82,6 +82,7 @@ class FmtRegistration(FmtComponent):
     def start(self) -> None:
         self.params_fmt = self.fmt_params()
         self._pool = TaskPool(self.threads)
+        warm_up()  # the compiled loop loaded here, not in the first turn
         self._prev: tuple[int, FmtImage] | None = None
         self._chain = (0.0, 0.0, 0.0)
         self.images = 0

@@ -94,7 +94,7 @@ from impala_flow.msgs import Grid
 from .parallel import TaskPool
 
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
-           "phase_correlation"]
+           "phase_correlation", "warm_up"]
 
 
 @dataclass(frozen=True)
@@ -117,9 +117,6 @@ class FmtParams:
     min_snr: float = 6.0  # a translation peak weaker than this is not a registration
     refine_deg: float = 0.5  # step of the rotation refinement on the translation peak (0: Algorithm 1 only)
     min_wavelength_m: float = 0.0  # finest spatial wavelength in the translation correlation (0: up to Nyquist)
-    # the refinement's last translation interpolated when its three rotations' peaks are within this many cells
-    # of each other (on the full grid; 0: always correlated)
-    refine_agree_cells: float = 0.0
 
 
 @dataclass
@@ -233,6 +230,13 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
                       [0.0, 1.0, (grid.origin_y_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2]])
         interp = cv2.INTER_LINEAR
     return cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def warm_up() -> None:
+    """Load the compiled 2x2 mean (numba, from its cache) now rather than in the first turn."""
+    from ._jit import mean2x2
+
+    mean2x2(np.zeros((2, 2), np.float32), np.empty((1, 1), np.float32))
 
 
 def _quantile(vals: np.ndarray, q: float) -> float:
@@ -788,28 +792,8 @@ def _refine_rotation(tr: _Translator, best: tuple, step: float) -> tuple[tuple, 
         if den >= 0:
             return mid, 0.0
         d = float(np.clip(0.5 * (lo[0] - hi[0]) / den, -0.5, 0.5))
-        agree_m = tr.p.refine_agree_cells * tr.p.cell_m
-        if tr.rows is None and agree_m > 0 and _agree(lo, mid, hi, agree_m):
-            return _interpolated(lo, mid, hi, d, theta + d * step), -den / step ** 2
         return tr.final(theta + d * step), -den / step ** 2
     return mid, 0.0
-
-
-def _agree(lo: tuple, mid: tuple, hi: tuple, tol_m: float) -> bool:
-    """The three rotations' translation peaks (x_m, y_m) within tol_m of each other."""
-    pts = [(c[2], c[3]) for c in (lo, mid, hi)]
-    return all(math.dist(u, v) <= tol_m for u, v in ((pts[0], pts[1]), (pts[1], pts[2]), (pts[0], pts[2])))
-
-
-def _interpolated(lo: tuple, mid: tuple, hi: tuple, d: float, theta: float) -> tuple:
-    """The translation peak at theta = mid's rotation + d steps (|d| <= 1/2) by the parabola
-    through lo, mid and hi (one step apart): its SNR (the refinement's own parabola at its
-    maximum), position and Hessian, each interpolated alike."""
-    def q(a, b, c):  # floats or 2x2 arrays
-        return b + d * 0.5 * (c - a) + d * d * 0.5 * (c - 2 * b + a)
-
-    return (float(q(lo[0], mid[0], hi[0])), theta, float(q(lo[2], mid[2], hi[2])), float(q(lo[3], mid[3], hi[3])),
-            q(lo[4], mid[4], hi[4]))
 
 
 def _covariance(p: FmtParams, snr_t: float, h: np.ndarray, snr_r: float, curv_r: float,
