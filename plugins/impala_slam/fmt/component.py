@@ -77,7 +77,8 @@ class FmtRegistration(FmtComponent):
     pose = Output(Pose2D, doc="the registrations chained from the first image (frame fmt)")
     threads = Param(int, default=2, ge=1, le=4,
                     doc="threads of a registration's independent correlations (the two rotation candidates, "
-                        "the refinement's two neighbours): the same results with any number, less wall time")
+                        "the refinement's two neighbours) and of its other transforms (scipy.fft workers): the "
+                        "same results with any number, less wall time")
 
     def start(self) -> None:
         self.params_fmt = self.fmt_params()
@@ -93,7 +94,7 @@ class FmtRegistration(FmtComponent):
     def process(self, t: int) -> None:
         grid: Grid = self.image.take()
         t0, c0, w0 = time.perf_counter(), time.thread_time(), self._pool.cpu_s
-        cur = prepare(grid, self.params_fmt, self.linear_power)
+        cur = prepare(grid, self.params_fmt, self.linear_power, workers=self.threads)
         self.images += 1
         if self._prev is None:
             self.fmt_s += time.perf_counter() - t0

@@ -83,6 +83,9 @@ I deliberately compute the correlation surfaces with scipy.fft instead of callin
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import cv2
@@ -262,12 +265,16 @@ def _quantile(vals: np.ndarray, q: float) -> float:
     return float(np.quantile(pair, v - k, overwrite_input=True))
 
 
-def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True) -> FmtImage:
+def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True, workers: int = 1) -> FmtImage:
     """Steps 1-5 for one image: resample, threshold (step 2), dB, taper; polar |FFT|.
 
     ``linear_power``: the grid holds power (the panoramic builder); False if already in dB
-    (Navtech PNGs)."""
-    p = params or FmtParams()
+    (Navtech PNGs). ``workers``: scipy.fft's threads for its transform (the same numbers)."""
+    with fft_workers(workers):
+        return _prepare(grid, params or FmtParams(), linear_power)
+
+
+def _prepare(grid: Grid, p: FmtParams, linear_power: bool) -> FmtImage:
     img = _resample(grid, p)
     observed = img > 0
     out = np.zeros_like(img)
@@ -387,12 +394,33 @@ def _columns(shape: tuple[int, ...], weight: np.ndarray | None, cache: bool = Fa
 _columns_of: dict[tuple, tuple[int, np.ndarray]] = {}
 
 
+_local = threading.local()
+
+
+def _workers() -> int:
+    """scipy.fft's threads for this thread's transforms (:func:`fft_workers`; 1 by default). pocketfft shares
+    a batch of 1-D transforms between them, each computed alike: the same numbers with any number."""
+    return getattr(_local, "workers", 1)
+
+
+@contextmanager
+def fft_workers(n: int) -> Iterator[None]:
+    """This thread's transforms on ``n`` threads within the block (:func:`_workers`)."""
+    old = _workers()
+    _local.workers = n
+    try:
+        yield
+    finally:
+        _local.workers = old
+
+
 def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
     """``scipy.fft.rfft2(img)``'s first ``cols`` columns, the same numbers: rfft2 is the real
     transform of the rows then the transform of the columns, here of the kept columns only."""
     if cols >= img.shape[1] // 2 + 1:
-        return scipy.fft.rfft2(img, workers=1)
-    return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=1)[:, :cols], axis=0, workers=1)
+        return scipy.fft.rfft2(img, workers=_workers())
+    w = _workers()
+    return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=w)[:, :cols], axis=0, workers=w)
 
 
 def _whitened(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
@@ -413,12 +441,12 @@ def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape:
     512-cell RADIATE turns came out bit-identical; tests/slam/test_fmt_core.py)."""
     cross = _whitened(fa, fb, weight)
     if cross.shape[1] >= shape[1] // 2 + 1:
-        return scipy.fft.irfft2(cross, s=shape, workers=1)
+        return scipy.fft.irfft2(cross, s=shape, workers=_workers())
     # irfft2 = the inverse transform of the columns, then the real inverse of the rows, scaled once
     # by 1 / (ny nx) at the end: the same numbers, without transforming the columns that are zero
     full = np.zeros((shape[0], shape[1] // 2 + 1), cross.dtype)
-    full[:, :cross.shape[1]] = scipy.fft.ifft(cross, axis=0, norm="forward", workers=1)
-    c = scipy.fft.irfft(full, n=shape[1], axis=1, norm="forward", workers=1)
+    full[:, :cross.shape[1]] = scipy.fft.ifft(cross, axis=0, norm="forward", workers=_workers())
+    c = scipy.fft.irfft(full, n=shape[1], axis=1, norm="forward", workers=_workers())
     c *= c.dtype.type(1.0 / (shape[0] * shape[1]))
     return c
 
@@ -537,8 +565,14 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     ``prior_theta_rad`` (odometry) only breaks a tie between the two rotation candidates
     whose translation peaks are within 10 % of each other. ``pool``: threads for the
     correlations that do not depend on each other (the two candidates, each refinement step's
-    two neighbours); the same result, bit for bit, with or without."""
-    p = params or FmtParams()
+    two neighbours, each transform of the others on the pool's threads too); the same result, bit for
+    bit, with or without."""
+    with fft_workers(pool.threads if pool is not None else 1):
+        return _register(a, b, params or FmtParams(), prior_theta_rad, pool)
+
+
+def _register(a: FmtImage, b: FmtImage, p: FmtParams, prior_theta_rad: float | None,
+              pool: TaskPool | None) -> FmtResult:
     if not (np.any(a.image) and np.any(b.image)):
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
     theta0, snr_r, curv_r = _rotation(a, b, p)
@@ -634,7 +668,11 @@ class _Translator:
         each is computed from this pair's images alone, so in any order, the same numbers)."""
         if self.pool is None:
             return [self.translation(*args) for args in batch]
-        return self.pool.map(self.translation, batch)
+        return self.pool.map(self._one_thread, batch)
+
+    def _one_thread(self, *args: object) -> tuple:
+        with fft_workers(1):  # the batch's tasks share the threads: one each
+            return self.translation(*args)  # type: ignore[arg-type]
 
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
         """The translation returned at rotation theta: on the coarse grid, from the full grid's
@@ -710,7 +748,7 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
     m = n // 2
     coarse = np.zeros((m, m // 2 + 1), cross.dtype)
     coarse[:, :cross.shape[1]] = cross
-    c = scipy.fft.irfft2(coarse, s=(m, m), workers=1)  # = 4 x the n x n surface every other cell
+    c = scipy.fft.irfft2(coarse, s=(m, m), workers=_workers())  # = 4 x the n x n surface every other cell
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
     freqs, col_f, col_w = _window_freqs(n, cross.shape[1])
     spec = cross.astype(np.complex128)
