@@ -13,8 +13,8 @@ poses with one registration update and the loop-candidate gate per step, plus th
 time per registration; the plot goes to out/bench-fmt-ekf/ekf_step_ms.png. Then the Oxford sample through
 graphs/oxford.yaml (FMT beside R-SLAM), and the first turns of a real RADIATE drive (--radiate, an imported
 mission; :func:`bench_fmt_radiate`) through graphs/oxford.yaml: slam.FmtRegistration's CPU time per turn
-(median; its thread's and its pool's, ``threads`` 2 by default) and wall time (median), its split by stage
-(cProfile on every other turn, run on one thread; the medians are taken on the turns not profiled) and the
+(median, on one thread) and wall time (median, on its ``threads``, 2 by default), its split by stage (cProfile,
+on one thread; a third of the turns each, in turn: the results are the same with 1 or 2 threads) and the
 FMT's ATE. ``fmt_*_ms_per_turn``: CPU; ``fmt_*_wall_ms_per_turn``: wall (meaningful on a quiet machine).
 Last line: JSON with the issue's keys (peak_rss_mb: this process's, the
 RADIATE graph's R-SLAM and panoramic builder included).
@@ -51,9 +51,9 @@ def _run(graph: str, mission: Path, out: Path) -> tuple[dict, dict]:
 
 def run_profiled(graph: str, variables: dict) -> tuple[dict, dict]:
     """A graph run in this process as a user runs it (Session, replay) with its slam.FmtRegistration
-    ``fmt`` timed: CPU ms per turn on every other turn (this thread's; median), the split by stage
-    (:func:`fmt_split`) from cProfile on the other turns. Returns the run's summary ``extra`` and
-    the FMT's figures."""
+    ``fmt`` timed, a third of the turns each: CPU ms per turn on one thread (median), wall ms per turn on
+    its ``threads`` (median), the split by stage (:func:`fmt_split`) from cProfile on one thread. Returns
+    the run's summary ``extra`` and the FMT's figures."""
     import cv2
 
     from impala_flow import Session
@@ -71,24 +71,33 @@ def run_profiled(graph: str, variables: dict) -> tuple[dict, dict]:
     one = TaskPool(1)
 
     def timed(t: int) -> None:
-        if len(cpu_ms) <= fmt.images // 2:
-            t0, c0, w0 = time.perf_counter(), time.thread_time(), fmt._pool.cpu_s
-            process(t)
-            wall_ms.append(1e3 * (time.perf_counter() - t0))
-            cpu_ms.append(1e3 * (time.thread_time() - c0 + fmt._pool.cpu_s - w0))  # the pool's threads' CPU too
-        else:  # the profiled turns on one thread (the same results): cProfile sees this thread only
-            pool, fmt._pool = fmt._pool, one
-            try:
+        # the turns in turn: CPU on one thread (the same results: all of it on this thread), wall on the
+        # component's threads, cProfile on one thread (it sees this thread only)
+        k = fmt.images % 3
+        pool = fmt._pool
+        if k != 1:
+            fmt._pool = one
+        try:
+            if k == 0:
+                c0 = time.thread_time()
+                process(t)
+                cpu_ms.append(1e3 * (time.thread_time() - c0))
+            elif k == 1:
+                t0 = time.perf_counter()
+                process(t)
+                wall_ms.append(1e3 * (time.perf_counter() - t0))
+            else:
                 prof.runcall(process, t)
-            finally:
-                fmt._pool = pool
+        finally:
+            fmt._pool = pool
 
     fmt.process = timed
     summary = session.run(net)
-    figures = {"ms_per_turn": float(np.median(cpu_ms[1:] or cpu_ms)),
-               "wall_ms_per_turn": float(np.median(wall_ms[1:] or wall_ms)), "threads": fmt.threads,
+    profiled = fmt.images - len(cpu_ms) - len(wall_ms)
+    figures = {"ms_per_turn": float(np.median(cpu_ms[1:] or cpu_ms)),  # the first image: no registration
+               "wall_ms_per_turn": float(np.median(wall_ms)), "threads": fmt.threads,
                "turns": fmt.images, "failures": fmt.failures,
-               **{f"{k}_ms": v for k, v in fmt_split(pstats.Stats(prof), fmt.images - len(cpu_ms)).items()}}
+               **{f"{k}_ms": v for k, v in fmt_split(pstats.Stats(prof), profiled).items()}}
     return summary.extra, figures
 
 
@@ -126,9 +135,9 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
             ct["fft"] = ct.get("fft", 0.0) + cum
         if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
             continue
-        if fn in ("translation", "final"):  # _Translator's, as register calls them (not through each other)
+        if fn in ("translations", "final"):  # _Translator's, as register calls them (not through each other)
             ct["translation"] = ct.get("translation", 0.0) + sum(v[3] for c, v in callers.items()
-                                                                 if c[2] == "register")
+                                                                 if c[2] == "_register")
         elif fn in ("_peak", "_coarse_peak"):
             ct["peak"] = ct.get("peak", 0.0) + cum
         elif fn in ("_snr", "_snr_sums"):
@@ -195,8 +204,8 @@ def main() -> int:
                       f"{m[f'{n}_final_err_m']:.3f} m (end to end {m[f'{n}_end_to_end_err_m']:.3f} m), "
                       f"{m[f'{n}_iterations']} iterations")
             print(f"  odometer + gyro ATE {m['baseline_ate_rmse_m']:.2f} m; FMT {f['ms_per_turn']:.1f} CPU ms per "
-                  f"registration (median, its {f['threads']} threads' CPU), wall {f['wall_ms_per_turn']:.1f} ms "
-                  f"(median); EKF step median {e.get('step_ms_median')} ms")
+                  f"registration (median, one thread), wall {f['wall_ms_per_turn']:.1f} ms (median, "
+                  f"{f['threads']} threads); EKF step median {e.get('step_ms_median')} ms")
             print("  " + split_line("FMT split", {k: f[f"{k}_ms"] for k in SPLIT}))
         ox = None
         if (Path(args.oxford) / "radar").is_dir():
@@ -219,8 +228,9 @@ def main() -> int:
                                check=True, capture_output=True)
             rad = bench_fmt_radiate(mission, args.turns)
         print(f"RADIATE, {rad['fmt_radiate_turns']} turns through graphs/oxford.yaml: FMT "
-              f"{rad['fmt_radiate_ms_per_turn']} CPU ms per turn (median, its {rad['fmt_threads']} threads' CPU), "
-              f"wall {rad['fmt_radiate_wall_ms_per_turn']} ms (median), ATE {rad['fmt_radiate_ate_m']} m, pairs "
+              f"{rad['fmt_radiate_ms_per_turn']} CPU ms per turn (median, one thread), wall "
+              f"{rad['fmt_radiate_wall_ms_per_turn']} ms (median, {rad['fmt_threads']} threads), ATE "
+              f"{rad['fmt_radiate_ate_m']} m, pairs "
               f"{rad['fmt_radiate_pair_trans_err_m']} m / {rad['fmt_radiate_pair_rot_err_deg']} deg")
         print("  " + split_line("FMT split", {k: rad[f"fmt_radiate_{k}_ms"] for k in SPLIT}))
     growth = ekf_growth()

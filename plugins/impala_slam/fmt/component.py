@@ -11,7 +11,8 @@ images and transforms sees one transform per image. ``pose`` chains the transfor
 the first image (frame ``fmt``): registration-only odometry, the per-pair errors of which
 the trajectory evaluator measures. Its summary gives the wall time per image (``fmt_ms``,
 mean) and the CPU time (``fmt_cpu_ms``, this thread's and the pool's, median of the last 4096
-images). ``threads`` (default 2): the registration's independent correlations run on that
+images; with ``threads`` > 1 the helper threads of scipy.fft are not in it: bench/fmt_ekf.py
+measures the CPU on one thread). ``threads`` (default 2): the registration's independent correlations run on that
 many threads (:class:`impala_slam.fmt.parallel.TaskPool`); the results are the same bits
 with 1 or 2, the wall time lower.
 """
@@ -94,7 +95,7 @@ class FmtRegistration(FmtComponent):
     def process(self, t: int) -> None:
         grid: Grid = self.image.take()
         t0, c0, w0 = time.perf_counter(), time.thread_time(), self._pool.cpu_s
-        cur = prepare(grid, self.params_fmt, self.linear_power, workers=self.threads)
+        cur = prepare(grid, self.params_fmt, self.linear_power, workers=self._pool.threads)
         self.images += 1
         if self._prev is None:
             self.fmt_s += time.perf_counter() - t0
