@@ -123,8 +123,13 @@ def test_older_spectrum_computed_once_per_image():
     r1 = register(a, b, P)
     assert len(a.spectra) == 1
     cached = next(iter(a.spectra.values()))
+    folded = b.folded  # the rotation's folded polar spectrum: once per image too
+    assert folded is not None and a.folded is not None
     r2 = register(a, b, P)
     assert next(iter(a.spectra.values())) is cached
+    assert b.folded is folded
+    half = P.angles // 2
+    np.testing.assert_array_equal(folded, scipy.fft.rfft(b.polar[:half] + b.polar[half:], axis=0))
     assert (r1.x_m, r1.y_m, r1.theta_rad) == (r2.x_m, r2.y_m, r2.theta_rad)
     assert r1.ok and abs(r1.x_m - 1.3) < 0.2 and abs(r1.y_m + 0.4) < 0.2 and abs(math.degrees(r1.theta_rad) - 4) < 0.5
 

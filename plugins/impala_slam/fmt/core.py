@@ -151,11 +151,14 @@ class FmtImage:
     # the image on the coarse grid (_half) and its spectrum by number of columns kept
     half: np.ndarray | None = field(default=None, repr=False, compare=False)
     half_spectra: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
+    # the rotation's spectrum of the polar image folded onto half a turn (_folded_spectrum)
+    folded: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def nbytes(self) -> int:
         return (self.image.nbytes + self.polar.nbytes + sum(s.nbytes for s in self.spectra.values())
-                + (0 if self.half is None else self.half.nbytes) + sum(s.nbytes for s in self.half_spectra.values()))
+                + (0 if self.half is None else self.half.nbytes) + sum(s.nbytes for s in self.half_spectra.values())
+                + (0 if self.folded is None else self.folded.nbytes))
 
 
 @dataclass
@@ -547,10 +550,7 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     normalised curvature of the peak (1 / bins^2)."""
     # centro-symmetric spectrum: fold the two half turns (period 180 deg), less noise
     half = p.angles // 2
-    pa = a.polar[:half] + a.polar[half:2 * half]
-    pb = b.polar[:half] + b.polar[half:2 * half]
-    fa = scipy.fft.rfft(pa, axis=0, workers=1)
-    fb = scipy.fft.rfft(pb, axis=0, workers=1)
+    fa, fb = _folded_spectrum(a, half), _folded_spectrum(b, half)
     cross = np.sum(fb * np.conj(fa), axis=1)  # summed over the radii: zero radial shift (no scale)
     cross /= np.maximum(np.abs(cross), 1e-30)
     c = scipy.fft.irfft(cross, n=half, workers=1)
@@ -565,6 +565,14 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     # |F_b|(w) = |F_a|(R(theta) w): b's polar rows are a's shifted by -theta
     theta = -math.radians(shift * 360.0 / p.angles)
     return theta, snr, curv
+
+
+def _folded_spectrum(img: FmtImage, half: int) -> np.ndarray:
+    """The rfft along the angles of the image's polar spectrum folded onto half a turn: once per
+    image (kept in :attr:`FmtImage.folded`), not once per registration it is in."""
+    if img.folded is None or img.folded.shape[0] != half // 2 + 1:
+        img.folded = scipy.fft.rfft(img.polar[:half] + img.polar[half:2 * half], axis=0, workers=1)
+    return img.folded
 
 
 def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR) -> np.ndarray:
