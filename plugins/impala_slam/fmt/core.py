@@ -61,12 +61,13 @@ refinement step's two neighbours do not depend on each other; they run on a pool
 the transforms outside them on scipy.fft's workers (pocketfft shares a batch of 1-D transforms
 between threads, each computed alike): the same bits with 1 thread or 2. CPU per registration
 with its image's preparation, one thread, median, the code before and after alternating on the
-same turns: RADIATE (graphs/oxford.yaml's settings) 27.1 -> 23.4 ms, campus 26.3 -> 24.8 ms (the
-2 x 2 mean compiled in one pass, the threshold's quantile selected above a sampled bound, both
-bit for bit numpy's, and the polar spectrum's magnitude on the square its warp reads). On 2
-threads the calling thread's CPU, the wall time's floor on an idle machine, falls to 16.0 ms
-(RADIATE) and 14.8 ms (campus) of the 25.0 and 25.4 ms it has on one (the 2 cores busy with other
-work throughout, so no wall figure of an idle machine).
+same 60 RADIATE turns (graphs/oxford.yaml's settings) and 40 campus ones, the 2 cores loaded by
+other work (load 10): RADIATE 31.1 -> 26.7 ms, campus 30.5 -> 27.3 ms (the 2 x 2 mean compiled in
+one pass, the threshold's quantile selected above a sampled bound, both bit for bit numpy's; the
+polar spectrum's magnitude on the square its warp reads; each image's folded polar spectrum
+transformed once). On 2 threads the calling thread's CPU, the wall time's floor on an idle
+machine, falls to 16.3 ms (RADIATE) and 15.6 ms (campus) of the 25.3 and 25.4 ms it has on one
+(the cores were never idle during this work, so no wall figure of an idle machine).
 
 Parameters set on data: the threshold (the 0.9 quantile of the observed power) and the
 band of spatial frequencies (0.02-0.25 cycles/cell) on a synthetic world
