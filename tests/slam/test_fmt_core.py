@@ -255,3 +255,40 @@ def test_quantile_is_numpys(q):
     for x in cases:
         x = x.astype(np.float32)
         assert core._quantile(x.copy(), q) == float(np.quantile(x, q))
+
+
+@pytest.mark.parametrize("linear_power,size", [(True, 256), (False, 256), (True, 151)])
+def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
+    # prepare(pool=) computes the 2 x 2 mean and the threshold, dB, taper and window in two halves of rows on the
+    # pool's threads: the same bits as step 2's formula on the whole image (np.quantile of the observed cells)
+    from impala_slam.fmt.parallel import TaskPool
+
+    rng = np.random.default_rng(8)
+    world = SyntheticWorld.random(rng, (-60, 60), (-60, 60), density_per_m2=0.02, n_clusters=12)
+    grid = world.render((0.0, 0.0, 0.0), rng, cell_m=0.1, radius_m=26.0)
+    if not linear_power:
+        grid = Grid(np.where(grid.data > 0, 10.0 * np.log10(np.maximum(grid.data, 1e-30)) + 40.0, 0.0).astype(
+            np.float32), grid.cell_m, grid.origin_x_m, grid.origin_y_m)
+    p = FmtParams(cell_m=0.2, size=size, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, min_wavelength_m=0.8)
+    img = core._resample(grid, p)
+    vals = img[img > 0]
+    level = float(np.quantile(vals, p.db_floor_quantile))
+    want = np.zeros_like(img)
+    keep = img > level
+    if linear_power:
+        want[keep] = 10.0 * np.log10(img[keep] / level)
+    else:
+        want[keep] = img[keep] - level
+    want *= core._taper(p)
+    pool = TaskPool(2)
+    try:
+        alone, halves = prepare(grid, p, linear_power), prepare(grid, p, linear_power, workers=2, pool=pool)
+    finally:
+        pool.close()
+    np.testing.assert_array_equal(alone.image, want)
+    np.testing.assert_array_equal(halves.image, want)
+    np.testing.assert_array_equal(halves.polar, alone.polar)
+    np.testing.assert_array_equal(halves.polar, core.polar_spectrum(want, p))
+    assert alone.spectra.keys() == halves.spectra.keys()
+    for k in alone.spectra:
+        np.testing.assert_array_equal(halves.spectra[k], alone.spectra[k])

@@ -95,7 +95,7 @@ class FmtRegistration(FmtComponent):
     def process(self, t: int) -> None:
         grid: Grid = self.image.take()
         t0, c0, w0 = time.perf_counter(), time.thread_time(), self._pool.cpu_s
-        cur = prepare(grid, self.params_fmt, self.linear_power, workers=self._pool.threads)
+        cur = prepare(grid, self.params_fmt, self.linear_power, workers=self._pool.threads, pool=self._pool)
         self.images += 1
         if self._prev is None:
             self.fmt_s += time.perf_counter() - t0

@@ -101,9 +101,10 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -232,8 +233,9 @@ def _low_pass(n: int, cell_m: float, min_wavelength_m: float) -> np.ndarray | No
     return _lowpass[key]
 
 
-def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
-    """The grid's values on the registration grid (radar at cell size // 2, axes kept)."""
+def _resample(grid: Grid, p: FmtParams, pool: TaskPool | None = None) -> np.ndarray:
+    """The grid's values on the registration grid (radar at cell size // 2, axes kept); ``pool``:
+    the 2 x 2 mean in halves of rows on its threads (the same numbers)."""
     data = np.ascontiguousarray(grid.data, np.float32)
     s = grid.cell_m / p.cell_m
     # registration pixel = s * grid pixel + offset, the vehicle origin -> centre cell
@@ -246,7 +248,8 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
         if k == 2:  # the mean below, summed in numpy's order (bit-identical), in one compiled pass
             from ._jit import mean2x2
 
-            data = mean2x2(data, np.empty((h // 2, w // 2), np.float32))  # ((x00 + x01) + (x10 + x11)) / 4
+            src, data = data, np.empty((h // 2, w // 2), np.float32)  # ((x00 + x01) + (x10 + x11)) / 4
+            _halves(pool, lambda r0, r1: mean2x2(src[2 * r0:2 * r1], data[r0:r1]), h // 2)
         else:
             data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
@@ -285,39 +288,63 @@ def _quantile(vals: np.ndarray, q: float) -> float:
     return float(np.quantile(pair, v - k, overwrite_input=True))
 
 
-def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True, workers: int = 1) -> FmtImage:
+def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True, workers: int = 1,
+            pool: TaskPool | None = None) -> FmtImage:
     """Steps 1-5 for one image: resample, threshold (step 2), dB, taper; polar |FFT|.
 
     ``linear_power``: the grid holds power (the panoramic builder); False if already in dB
-    (Navtech PNGs). ``workers``: scipy.fft's threads for its transform (the same numbers)."""
+    (Navtech PNGs). ``workers``: scipy.fft's threads for its transform; ``pool``: the element-wise
+    steps in halves of rows on its threads (each cell computed alike: the same numbers)."""
     with fft_workers(workers):
-        return _prepare(grid, params or FmtParams(), linear_power)
+        return _prepare(grid, params or FmtParams(), linear_power, pool)
 
 
-def _prepare(grid: Grid, p: FmtParams, linear_power: bool) -> FmtImage:
-    img = _resample(grid, p)
-    observed = img > 0
+def _halves(pool: TaskPool | None, fn: Callable[[int, int], Any], rows: int) -> list:
+    """``fn(r0, r1)`` on the two halves of ``rows`` on the pool's threads (one call without a pool)."""
+    if pool is None or pool.threads < 2:
+        return [fn(0, rows)]
+    h = rows // 2
+    return pool.map(fn, [(0, h), (h, rows)])
+
+
+def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None = None) -> FmtImage:
+    img = _resample(grid, p, pool)
+    n = img.shape[0]
+
+    def observed_of(r0: int, r1: int) -> np.ndarray:
+        part = img[r0:r1]
+        return part[part > 0]
+
+    # the observed values in row order (img[img > 0]), a half of the rows each
+    vals = np.concatenate(_halves(pool, observed_of, n))
     out = np.zeros_like(img)
-    if np.any(observed):
-        vals = img[observed]
+    hann = _hann(out.shape)
+    windowed = np.empty_like(img)  # every cell written by finish()
+    if vals.size:
         if linear_power:
-            level = _quantile(vals, p.db_floor_quantile)  # vals: a copy, reordered
+            level = _quantile(vals, p.db_floor_quantile)  # vals: reordered
             level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
-            keep = img > level
-            out[keep] = 10.0 * np.log10(img[keep] / level)
         else:
             level = _quantile(vals, p.db_floor_quantile)
-            keep = img > level
-            out[keep] = img[keep] - level
-    out *= _taper(p)
-    n = out.shape[0]
+    taper = _taper(p)
+
+    def finish(r0: int, r1: int) -> None:  # threshold, dB, taper and window of rows r0..r1
+        o = out[r0:r1]
+        if vals.size:
+            part = img[r0:r1]
+            keep = part > level
+            o[keep] = 10.0 * np.log10(part[keep] / level) if linear_power else part[keep] - level
+        o *= taper[r0:r1]
+        np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
+
+    _halves(pool, finish, n)
     lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
     cols, _ = _columns(out.shape, lp, True)
     hi = int(p.band[1] * n)
     if out.shape[1] == n and n % 2 == 0 and hi + 4 < n // 2:
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
         # image is the older one of a pair, the translation's spectrum on the full grid (_spectrum)
-        rf = _rfft2(out * _hann(out.shape), max(cols, hi + 4))
+        rf = _rfft2(windowed, max(cols, hi + 4))
         return FmtImage(out, polar_spectrum(out, p, rf), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
 
@@ -604,8 +631,13 @@ def _register(a: FmtImage, b: FmtImage, p: FmtParams, prior_theta_rad: float | N
               pool: TaskPool | None) -> FmtResult:
     if not (np.any(a.image) and np.any(b.image)):
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
-    theta0, snr_r, curv_r = _rotation(a, b, p)
-    tr = _Translator(a, b, p, pool)
+    if pool is not None and pool.threads > 1:
+        # the rotation (this thread) and what the translations need of the pair whatever the rotation
+        # (another): independent, the same numbers in either order
+        (theta0, snr_r, curv_r), tr = pool.map(_call, [(_rotation, a, b, p), (_translator, a, b, p, pool)])
+    else:
+        theta0, snr_r, curv_r = _rotation(a, b, p)
+        tr = _Translator(a, b, p, pool)
     fb = tr.spectrum(theta0)
     cands = tr.translations([(theta0, fb), (theta0 + math.pi, np.conj(fb))])
     best = None
@@ -643,6 +675,19 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
     :func:`register` per pair when an image is registered more than once."""
     p = params or FmtParams()
     return register(prepare(a, p, linear_power), prepare(b, p, linear_power), p, prior_theta_rad)
+
+
+def _call(fn: Callable[..., Any], *args: object) -> Any:
+    return fn(*args)
+
+
+def _translator(a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None) -> _Translator:
+    """:class:`_Translator` of the pair with b on the coarse grid too (when it is used): what does not
+    depend on the rotation, ready before the rotation is known."""
+    tr = _Translator(a, b, p, pool)
+    if tr.rows is not None:
+        _half(b)
+    return tr
 
 
 class _Translator:
