@@ -682,11 +682,13 @@ def _call(fn: Callable[..., Any], *args: object) -> Any:
 
 
 def _translator(a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None) -> _Translator:
-    """:class:`_Translator` of the pair with b on the coarse grid too (when it is used): what does not
-    depend on the rotation, ready before the rotation is known."""
+    """:class:`_Translator` of the pair with b on the coarse grid and a's full-grid spectrum on the
+    coarse rows (when the coarse grid is used): what does not depend on the rotation, ready before
+    the rotation is known."""
     tr = _Translator(a, b, p, pool)
     if tr.rows is not None:
         _half(b)
+        tr.fa_fine  # noqa: B018 - computed here, beside the rotation
     return tr
 
 
@@ -704,6 +706,7 @@ class _Translator:
         n = a.image.shape[0]
         self.p, self.n, self.a, self.b, self.pool = p, n, a, b, pool
         self._final: dict[float, tuple] = {}
+        self._fa_fine: np.ndarray | None = None
         lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
         self.cols, weight = _columns(a.image.shape, lp, True)
         self.rows = _coarse_rows(n, lp, self.cols) if a.image.shape[1] == n else None
@@ -759,8 +762,11 @@ class _Translator:
 
     @property
     def fa_fine(self) -> np.ndarray:
+        """The older image's full-grid spectrum on the coarse rows (once per pair)."""
         assert self.rows is not None
-        return _spectrum(self.a, self.cols, False)[self.rows]
+        if self._fa_fine is None:
+            self._fa_fine = _spectrum(self.a, self.cols, False)[self.rows]
+        return self._fa_fine
 
 
 def _half(img: FmtImage) -> np.ndarray:
