@@ -13,8 +13,9 @@ the trajectory evaluator measures. Its summary gives the wall time per image (``
 mean) and the CPU time (``fmt_cpu_ms``, this thread's and the pool's, median of the last 4096
 images; with ``threads`` > 1 the helper threads of scipy.fft are not in it: bench/fmt_ekf.py
 measures the CPU on one thread). ``threads`` (default 2): the registration's independent correlations run on that
-many threads (:class:`impala_slam.fmt.parallel.TaskPool`); the results are the same bits
-with 1 or 2, the wall time lower.
+many threads (:class:`impala_slam.fmt.parallel.TaskPool`), and so do the preparation's
+element-wise steps (two halves of rows) and the rotation beside the translations' setup; the
+results are the same bits with 1 or 2, the wall time lower on idle cores.
 """
 
 from __future__ import annotations
