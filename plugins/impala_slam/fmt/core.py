@@ -74,9 +74,10 @@ rotation (the older image's spectra, the newer one on the coarse grid): the same
 thread's CPU on 2 threads, the same 40 RADIATE and 40 campus turns, the code before and after
 alternating, four runs at load 1-4: RADIATE 14.2-16.3 -> 13.3-15.5 ms (0.5-0.9 less), campus
 13.0-15.1 -> 13.0-15.0 ms (0.0-0.2 less); OpenCV's own threads (a graph run's default, one per
-core; the same bits) take 0-0.9 ms more of its warps off it. Wall time on 2 threads was no lower
-than on one in these runs: the other sessions kept both cores busy, so the second thread waited
-for a core.
+core; the same bits) take 0-0.9 ms more of its warps off it. Wall time (median, load 1.1, the
+other sessions still on a core): RADIATE 23.2 ms on one thread, 20.2 on 2 before, 18.5 now with
+OpenCV's threads; campus 20.8, 18.0, 17.1. At load 2-4 the 2 threads' wall was no lower than one's
+(the second thread waited for a core).
 
 Parameters set on data: the threshold (the 0.9 quantile of the observed power) and the
 band of spatial frequencies (0.02-0.25 cycles/cell) on a synthetic world
