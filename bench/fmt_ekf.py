@@ -13,9 +13,13 @@ poses with one registration update and the loop-candidate gate per step, plus th
 time per registration; the plot goes to out/bench-fmt-ekf/ekf_step_ms.png. Then the Oxford sample through
 graphs/oxford.yaml (FMT beside R-SLAM), and the first turns of a real RADIATE drive (--radiate, an imported
 mission; :func:`bench_fmt_radiate`) through graphs/oxford.yaml: slam.FmtRegistration's CPU time per turn
-(median, this thread's), its split by stage (cProfile on every other turn; the median is taken on the turns
-not profiled) and the FMT's ATE. Last line: JSON with the issue's keys (peak_rss_mb: this process's, the
-RADIATE graph's R-SLAM and panoramic builder included).
+(median, on one thread) and wall time (median, on its ``threads``, 2 by default, and OpenCV on as many as in
+a graph run, where cv2 keeps its default of one per core; the calling thread's CPU in these turns too), its
+split by stage (cProfile, on one thread; a third of the turns each, in turn: the results are the same with 1 or
+2 threads) and the FMT's ATE. ``fmt_*_ms_per_turn``: CPU; ``fmt_*_wall_ms_per_turn``: wall (meaningful on a
+quiet machine); ``fmt_*_main_cpu_ms_per_turn``: the calling thread's CPU in the wall turns.
+Last line: JSON with the issue's keys (peak_rss_mb: this process's, the RADIATE graph's R-SLAM and panoramic
+builder included).
 """
 
 from __future__ import annotations
@@ -49,9 +53,9 @@ def _run(graph: str, mission: Path, out: Path) -> tuple[dict, dict]:
 
 def run_profiled(graph: str, variables: dict) -> tuple[dict, dict]:
     """A graph run in this process as a user runs it (Session, replay) with its slam.FmtRegistration
-    ``fmt`` timed: CPU ms per turn on every other turn (this thread's; median), the split by stage
-    (:func:`fmt_split`) from cProfile on the other turns. Returns the run's summary ``extra`` and
-    the FMT's figures."""
+    ``fmt`` timed, a third of the turns each: CPU ms per turn on one thread (median), wall ms per turn on
+    its ``threads`` (median), the split by stage (:func:`fmt_split`) from cProfile on one thread. Returns
+    the run's summary ``extra`` and the FMT's figures."""
     import cv2
 
     from impala_flow import Session
@@ -59,23 +63,50 @@ def run_profiled(graph: str, variables: dict) -> tuple[dict, dict]:
     cv2.setNumThreads(1)
     session = Session()
     net = session.build(session.load(ROOT / "graphs" / graph, variables=variables))
+    from impala_slam.fmt.parallel import TaskPool
+
     fmt = net.components["fmt"]
     prof = cProfile.Profile(time.thread_time)
     cpu_ms: list[float] = []
+    wall_ms: list[float] = []
+    main_ms: list[float] = []  # the calling thread's CPU in the wall turns: the floor of their wall time
     process = fmt.process
+    one = TaskPool(1)
 
     def timed(t: int) -> None:
-        if len(cpu_ms) <= fmt.images // 2:
-            t0 = time.thread_time()
-            process(t)
-            cpu_ms.append(1e3 * (time.thread_time() - t0))
-        else:
-            prof.runcall(process, t)
+        # the turns in turn: CPU on one thread (the same results: all of it on this thread), wall on the
+        # component's threads, cProfile on one thread (it sees this thread only)
+        k = fmt.images % 3
+        pool = fmt._pool
+        if k != 1:
+            fmt._pool = one
+        try:
+            if k == 0:
+                c0 = time.thread_time()
+                process(t)
+                cpu_ms.append(1e3 * (time.thread_time() - c0))
+            elif k == 1:  # as in a graph run: OpenCV on its threads too (its default there: one per core)
+                cv2.setNumThreads(fmt.threads)
+                t0, c0 = time.perf_counter(), time.thread_time()
+                try:
+                    process(t)
+                finally:
+                    cv2.setNumThreads(1)
+                wall_ms.append(1e3 * (time.perf_counter() - t0))
+                main_ms.append(1e3 * (time.thread_time() - c0))
+            else:
+                prof.runcall(process, t)
+        finally:
+            fmt._pool = pool
 
     fmt.process = timed
     summary = session.run(net)
-    figures = {"ms_per_turn": float(np.median(cpu_ms[1:] or cpu_ms)), "turns": fmt.images, "failures": fmt.failures,
-               **{f"{k}_ms": v for k, v in fmt_split(pstats.Stats(prof), fmt.images - len(cpu_ms)).items()}}
+    profiled = fmt.images - len(cpu_ms) - len(wall_ms)
+    figures = {"ms_per_turn": float(np.median(cpu_ms[1:] or cpu_ms)),  # the first image: no registration
+               "wall_ms_per_turn": float(np.median(wall_ms)), "threads": fmt.threads,
+               "main_cpu_ms_per_turn": float(np.median(main_ms)),
+               "turns": fmt.images, "failures": fmt.failures,
+               **{f"{k}_ms": v for k, v in fmt_split(pstats.Stats(prof), profiled).items()}}
     return summary.extra, figures
 
 
@@ -89,12 +120,15 @@ def bench_fmt_radiate(mission_path: str | Path, turns: int = 100, out: str | Pat
         _, f = run_profiled("oxford.yaml", {"mission": str(mission_path), "out": str(out), "end_s": turns / 4.0})
         metrics = json.loads((out / "fmt" / "metrics.json").read_text())
     return {"fmt_radiate_ms_per_turn": round(f["ms_per_turn"], 2),
+            "fmt_radiate_wall_ms_per_turn": round(f["wall_ms_per_turn"], 2),
+            "fmt_radiate_main_cpu_ms_per_turn": round(f["main_cpu_ms_per_turn"], 2),
+            "fmt_threads": f["threads"],
             "fmt_radiate_turns": f["turns"],
             "fmt_radiate_failures": f["failures"],
             "fmt_radiate_ate_m": metrics["ate_rmse_m"],
             "fmt_radiate_pair_trans_err_m": metrics.get("pair_trans_err_mean_m"),
             "fmt_radiate_pair_rot_err_deg": metrics.get("pair_rot_err_mean_deg"),
-            **{f"fmt_radiate_{k}": round(v, 2) for k, v in f.items() if k.endswith("_ms")},
+            **{f"fmt_radiate_{k}": round(v, 2) for k, v in f.items() if k.endswith("_ms")},  # the split
             "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
 
 
@@ -111,9 +145,9 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
             ct["fft"] = ct.get("fft", 0.0) + cum
         if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
             continue
-        if fn in ("translation", "final"):  # _Translator's, as register calls them (not through each other)
+        if fn in ("translations", "final"):  # _Translator's, as register calls them (not through each other)
             ct["translation"] = ct.get("translation", 0.0) + sum(v[3] for c, v in callers.items()
-                                                                 if c[2] == "register")
+                                                                 if c[2] == "_register")
         elif fn in ("_peak", "_coarse_peak"):
             ct["peak"] = ct.get("peak", 0.0) + cum
         elif fn in ("_snr", "_snr_sums"):
@@ -180,7 +214,8 @@ def main() -> int:
                       f"{m[f'{n}_final_err_m']:.3f} m (end to end {m[f'{n}_end_to_end_err_m']:.3f} m), "
                       f"{m[f'{n}_iterations']} iterations")
             print(f"  odometer + gyro ATE {m['baseline_ate_rmse_m']:.2f} m; FMT {f['ms_per_turn']:.1f} CPU ms per "
-                  f"registration (median; wall {res[scen][2].get('fmt_ms')} ms mean); EKF step median "
+                  f"registration (median, one thread), wall {f['wall_ms_per_turn']:.1f} ms (median, "
+                  f"{f['threads']} threads; calling thread {f['main_cpu_ms_per_turn']:.1f} CPU ms); EKF step median "
                   f"{e.get('step_ms_median')} ms")
             print("  " + split_line("FMT split", {k: f[f"{k}_ms"] for k in SPLIT}))
         ox = None
@@ -204,7 +239,10 @@ def main() -> int:
                                check=True, capture_output=True)
             rad = bench_fmt_radiate(mission, args.turns)
         print(f"RADIATE, {rad['fmt_radiate_turns']} turns through graphs/oxford.yaml: FMT "
-              f"{rad['fmt_radiate_ms_per_turn']} CPU ms per turn (median), ATE {rad['fmt_radiate_ate_m']} m, pairs "
+              f"{rad['fmt_radiate_ms_per_turn']} CPU ms per turn (median, one thread), wall "
+              f"{rad['fmt_radiate_wall_ms_per_turn']} ms (median, {rad['fmt_threads']} threads; calling thread "
+              f"{rad['fmt_radiate_main_cpu_ms_per_turn']} CPU ms), ATE "
+              f"{rad['fmt_radiate_ate_m']} m, pairs "
               f"{rad['fmt_radiate_pair_trans_err_m']} m / {rad['fmt_radiate_pair_rot_err_deg']} deg")
         print("  " + split_line("FMT split", {k: rad[f"fmt_radiate_{k}_ms"] for k in SPLIT}))
     growth = ekf_growth()
@@ -222,6 +260,8 @@ def main() -> int:
           f"+ {fit[2]:.2f} ms")
     fmt_ms = res["campus-loop"][2].get("fmt_ms", 0.0)
     fmt_cpu = [res[scen][3]["ms_per_turn"] for scen in ("campus-open", "campus-loop")]
+    fmt_wall = [res[scen][3]["wall_ms_per_turn"] for scen in ("campus-open", "campus-loop")]
+    fmt_main = [res[scen][3]["main_cpu_ms_per_turn"] for scen in ("campus-open", "campus-loop")]
     outdir = Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)
     import matplotlib
@@ -254,7 +294,11 @@ def main() -> int:
         "oxford_fmt_trans_err_m": ox and ox["pair_trans_err_mean_m"],
         "oxford_fmt_rot_err_deg": ox and ox["pair_rot_err_mean_deg"],
         "fmt_campus_ms_per_turn": round(float(np.mean(fmt_cpu)), 2),
+        "fmt_campus_wall_ms_per_turn": round(float(np.mean(fmt_wall)), 2),
+        "fmt_campus_main_cpu_ms_per_turn": round(float(np.mean(fmt_main)), 2),
         "fmt_radiate_ms_per_turn": rad and rad["fmt_radiate_ms_per_turn"],
+        "fmt_radiate_wall_ms_per_turn": rad and rad["fmt_radiate_wall_ms_per_turn"],
+        "fmt_radiate_main_cpu_ms_per_turn": rad and rad["fmt_radiate_main_cpu_ms_per_turn"],
         "fmt_radiate_ate_m": rad and rad["fmt_radiate_ate_m"],
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }))

@@ -123,8 +123,13 @@ def test_older_spectrum_computed_once_per_image():
     r1 = register(a, b, P)
     assert len(a.spectra) == 1
     cached = next(iter(a.spectra.values()))
+    folded = b.folded  # the rotation's folded polar spectrum: once per image too
+    assert folded is not None and a.folded is not None
     r2 = register(a, b, P)
     assert next(iter(a.spectra.values())) is cached
+    assert b.folded is folded
+    half = P.angles // 2
+    np.testing.assert_array_equal(folded, scipy.fft.rfft(b.polar[:half] + b.polar[half:], axis=0))
     assert (r1.x_m, r1.y_m, r1.theta_rad) == (r2.x_m, r2.y_m, r2.theta_rad)
     assert r1.ok and abs(r1.x_m - 1.3) < 0.2 and abs(r1.y_m + 0.4) < 0.2 and abs(math.degrees(r1.theta_rad) - 4) < 0.5
 
@@ -183,3 +188,113 @@ def test_whitened_spectrum_is_the_cross_power_over_its_magnitude():
     mag = np.maximum(np.abs(cross), 1e-12 * np.abs(cross).max())
     np.testing.assert_allclose(core._whitened(fa, fb, weight), cross / mag * weight, rtol=1e-6, atol=1e-7)
     np.testing.assert_allclose(core._whitened(fa, fb, None), cross / mag, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("min_wavelength_m", [0.8, 0.0])  # the coarse search, the full grid
+def test_registrations_on_two_threads_are_the_one_threads(min_wavelength_m):
+    # slam.FmtRegistration runs a registration's independent correlations (the two candidates, the
+    # refinement's two neighbours) on `threads` threads: every transform the same bits with 1 and 2
+    from impala_flow.msgs import RelativePose2D
+    from impala_flow.testing import CollectingSink, ScriptedSource, run_components
+    from impala_slam.fmt.component import FmtRegistration
+
+    rng = np.random.default_rng(5)
+    world = SyntheticWorld.random(rng, (-60, 60), (-60, 60), density_per_m2=0.02, n_clusters=12)
+    truth = [(0.6 * k, 0.1 * k, math.radians(1.5 * k)) for k in range(6)]
+    images = [(k * 250_000_000, "image", world.render(pose, rng, cell_m=0.1, radius_m=26.0))
+              for k, pose in enumerate(truth)]
+    params = dict(cell_m=0.2, size=256, range_min_m=2.5, range_max_m=25.0, taper_m=4.0,
+                  min_wavelength_m=min_wavelength_m)
+    got = {}
+    # and OpenCV's own threads (a graph run leaves cv2 at its default, one per core) split its warps alike
+    for threads, cv_threads in ((1, 1), (2, 1), (2, 2)):
+        fmt, sink = FmtRegistration("fmt", threads=threads, **params), CollectingSink("sink")
+        cv2.setNumThreads(cv_threads)
+        try:
+            run_components(ScriptedSource("src", images), fmt, sink,
+                           connections=["src.image -> fmt.image", "fmt.transform -> sink.x"])
+        finally:
+            cv2.setNumThreads(1)
+        got[threads, cv_threads] = sink.values()
+        assert fmt.summary()["images"] == len(images)
+    for one, two, two_cv in zip(got[1, 1], got[2, 1], got[2, 2], strict=True):
+        for other in (two, two_cv):
+            assert isinstance(other, RelativePose2D)
+            assert (one.x_m, one.y_m, one.theta_rad, one.kind) == (other.x_m, other.y_m, other.theta_rad, other.kind)
+            np.testing.assert_array_equal(one.cov_xyt, other.cov_xyt)
+    # and they are the motion (each image's pose in the previous one's frame), to within this sparse world's
+    # registration error (the other tests of this file hold the accuracy)
+    from impala_slam.se2 import between
+
+    steps = [r for r in got[2, 2] if r.kind == "registration"]
+    assert len(steps) >= 4
+    for r in steps:
+        k = r.to_t_ns // 250_000_000
+        want = between(truth[k - 1], truth[k])
+        assert math.hypot(r.x_m - want[0], r.y_m - want[1]) < 0.3
+        assert abs(math.degrees(r.theta_rad - want[2])) < 1.0
+
+
+def test_compiled_two_by_two_mean_is_numpys():
+    from impala_slam.fmt._jit import mean2x2
+
+    rng = np.random.default_rng(2)
+    data = rng.exponential(1.0, (201, 157)).astype(np.float32) * np.float32(1e3)
+    h, w = 200, 156
+    want = data[:h, :w].reshape(h // 2, 2, w // 2, 2).mean(axis=(1, 3), dtype=np.float32)
+    pairs = data[:h, 0:w:2] + data[:h, 1:w:2]  # numpy's order of the sums (the mean above may sum otherwise)
+    exact = (pairs[0::2] + pairs[1::2]) / np.float32(4)
+    got = mean2x2(data, np.empty((h // 2, w // 2), np.float32))
+    np.testing.assert_array_equal(got, exact)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+@pytest.mark.parametrize("q", [0.9, 0.5, 0.999, 0.03])
+def test_quantile_is_numpys(q):
+    # the threshold of step 2: the two order statistics selected among the values over a bound, then numpy's
+    # interpolation of the two: the same number as np.quantile, on skewed, flat, tied and tiny arrays
+    rng = np.random.default_rng(4)
+    cases = [rng.exponential(1.0, 200_000), rng.random(50_000), rng.integers(0, 4, 30_000).astype(float),
+             rng.lognormal(0.0, 3.0, 100_001), rng.random(7), np.full(10_000, 2.5)]
+    power = _images()[0].image  # a prepared image's values too
+    cases.append(power[power > 0].astype(np.float64))
+    for x in cases:
+        x = x.astype(np.float32)
+        assert core._quantile(x.copy(), q) == float(np.quantile(x, q))
+
+
+@pytest.mark.parametrize("linear_power,size", [(True, 256), (False, 256), (True, 151)])
+def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
+    # prepare(pool=) computes the 2 x 2 mean and the threshold, dB, taper and window in two halves of rows on the
+    # pool's threads: the same bits as step 2's formula on the whole image (np.quantile of the observed cells)
+    from impala_slam.fmt.parallel import TaskPool
+
+    rng = np.random.default_rng(8)
+    world = SyntheticWorld.random(rng, (-60, 60), (-60, 60), density_per_m2=0.02, n_clusters=12)
+    grid = world.render((0.0, 0.0, 0.0), rng, cell_m=0.1, radius_m=26.0)
+    if not linear_power:
+        grid = Grid(np.where(grid.data > 0, 10.0 * np.log10(np.maximum(grid.data, 1e-30)) + 40.0, 0.0).astype(
+            np.float32), grid.cell_m, grid.origin_x_m, grid.origin_y_m)
+    p = FmtParams(cell_m=0.2, size=size, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, min_wavelength_m=0.8)
+    img = core._resample(grid, p)
+    vals = img[img > 0]
+    level = float(np.quantile(vals, p.db_floor_quantile))
+    want = np.zeros_like(img)
+    keep = img > level
+    if linear_power:
+        want[keep] = 10.0 * np.log10(img[keep] / level)
+    else:
+        want[keep] = img[keep] - level
+    want *= core._taper(p)
+    pool = TaskPool(2)
+    try:
+        alone, halves = prepare(grid, p, linear_power), prepare(grid, p, linear_power, workers=2, pool=pool)
+    finally:
+        pool.close()
+    np.testing.assert_array_equal(alone.image, want)
+    np.testing.assert_array_equal(halves.image, want)
+    np.testing.assert_array_equal(halves.polar, alone.polar)
+    np.testing.assert_array_equal(halves.polar, core.polar_spectrum(want, p))
+    assert alone.spectra.keys() == halves.spectra.keys()
+    for k in alone.spectra:
+        np.testing.assert_array_equal(halves.spectra[k], alone.spectra[k])

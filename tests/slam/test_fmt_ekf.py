@@ -434,3 +434,26 @@ def test_navtech_graph_on_the_oxford_pairs(tmp_path):
     assert np.mean(trans) <= 0.10 and np.mean(rot) <= 0.25
     for f in ("trajectories.png", "convergence.png", "online/pair_errors.png"):
         assert (out / f).exists(), f
+
+
+def test_ekf_on_two_threads_is_the_one_threads():
+    # slam.EkfSlam's registrations (consecutive and loop candidates) on `threads` threads, as slam.FmtRegistration's:
+    # every constraint and pose the same bits with 1 and 2
+    samples, _ = _look_alike_samples()
+    got = {}
+    for threads in (1, 2):
+        ekf = EkfSlam("ekf", registrations="internal", loop_radius_m=150.0, loop_min_travel_m=60.0,
+                      odo_sigma_frac=0.2, size=256, cell_m=0.3, threads=threads)
+        sink = CollectingSink("sink", ports=["constraints", "pose"])
+        run_components(ScriptedSource("src", samples), ekf, sink,
+                       connections=["src.image -> ekf.image", "ekf.constraints -> sink.constraints",
+                                    "ekf.pose -> sink.pose"])
+        assert ekf.summary()["loop_candidates_tried"] > 0
+        got[threads] = sink.values("constraints"), sink.values("pose")
+    for one, two in zip(got[1][0], got[2][0], strict=True):
+        assert (one.from_t_ns, one.to_t_ns, one.x_m, one.y_m, one.theta_rad, one.kind) == \
+            (two.from_t_ns, two.to_t_ns, two.x_m, two.y_m, two.theta_rad, two.kind)
+        np.testing.assert_array_equal(one.cov_xyt, two.cov_xyt)
+    for one, two in zip(got[1][1], got[2][1], strict=True):
+        assert (one.x_m, one.y_m, one.theta_rad) == (two.x_m, two.y_m, two.theta_rad)
+        np.testing.assert_array_equal(one.cov_xyt, two.cov_xyt)

@@ -50,7 +50,34 @@ pull the translation to zero. :func:`register` then runs the rest of Algorithm 1
   spectra is good to about a polar bin (0.5 deg): it is refined by a parabola through the
   translation peak's SNR at theta - step, theta, theta + step, and the translation taken
   again at the refined rotation. On the Oxford pairs it halves the rotation error (0.28 to
-  0.15 deg per pair) for 3 to 5 more correlations.
+  0.15 deg per pair) for 3 to 5 more correlations. That last translation is correlated, never
+  interpolated from the three: interpolated when their peaks agreed within a quarter cell (one
+  correlation less on the full grid), graphs/fmt_ekf_navtech.yaml's EKF / iSAM2 / LM ATE on the
+  RADIATE head went from 1.0098 / 1.0095 / 1.0095 to 1.0115 / 1.0111 / 1.0111 m and campus-loop
+  seed 13's EKF from 0.430 to 0.435 m.
+
+Threads (``pool``, slam.FmtRegistration's ``threads``): the two candidates' correlations and each
+refinement step's two neighbours do not depend on each other; they run on a pool's threads, and
+the transforms outside them on scipy.fft's workers (pocketfft shares a batch of 1-D transforms
+between threads, each computed alike): the same bits with 1 thread or 2. CPU per registration
+with its image's preparation, one thread, median, the code before and after alternating on the
+same 60 RADIATE turns (graphs/oxford.yaml's settings) and 40 campus ones, the 2 cores loaded by
+other work (load 10): RADIATE 31.1 -> 26.7 ms, campus 30.5 -> 27.3 ms (the 2 x 2 mean compiled in
+one pass, the threshold's quantile selected above a sampled bound, both bit for bit numpy's; the
+polar spectrum's magnitude on the square its warp reads; each image's folded polar spectrum
+transformed once). On 2 threads the calling thread's CPU, the wall time's floor on an idle
+machine, falls to 16.3 ms (RADIATE) and 15.6 ms (campus) of the 25.3 and 25.4 ms it has on one
+(the cores were never idle during this work, so no wall figure of an idle machine). With a pool,
+:func:`prepare` also computes the 2 x 2 mean and the threshold, dB, taper and window in two halves
+of rows, and :func:`register` the rotation beside what the translations need whatever the
+rotation (the older image's spectra, the newer one on the coarse grid): the same bits. The calling
+thread's CPU on 2 threads, the same 40 RADIATE and 40 campus turns, the code before and after
+alternating, four runs at load 1-4: RADIATE 14.2-16.3 -> 13.3-15.5 ms (0.5-0.9 less), campus
+13.0-15.1 -> 13.0-15.0 ms (0.0-0.2 less); OpenCV's own threads (a graph run's default, one per
+core; the same bits) take 0-0.9 ms more of its warps off it. Wall time (median, load 1.1, the
+other sessions still on a core): RADIATE 23.2 ms on one thread, 20.2 on 2 before, 18.5 now with
+OpenCV's threads; campus 20.8, 18.0, 17.1. At load 2-4 the 2 threads' wall was no lower than one's
+(the second thread waited for a core).
 
 Parameters set on data: the threshold (the 0.9 quantile of the observed power) and the
 band of spatial frequencies (0.02-0.25 cycles/cell) on a synthetic world
@@ -83,7 +110,11 @@ I deliberately compute the correlation surfaces with scipy.fft instead of callin
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -91,8 +122,10 @@ import scipy.fft
 
 from impala_flow.msgs import Grid
 
+from .parallel import TaskPool
+
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
-           "phase_correlation"]
+           "phase_correlation", "warm_up"]
 
 
 @dataclass(frozen=True)
@@ -130,11 +163,14 @@ class FmtImage:
     # the image on the coarse grid (_half) and its spectrum by number of columns kept
     half: np.ndarray | None = field(default=None, repr=False, compare=False)
     half_spectra: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
+    # the rotation's spectrum of the polar image folded onto half a turn (_folded_spectrum)
+    folded: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def nbytes(self) -> int:
         return (self.image.nbytes + self.polar.nbytes + sum(s.nbytes for s in self.spectra.values())
-                + (0 if self.half is None else self.half.nbytes) + sum(s.nbytes for s in self.half_spectra.values()))
+                + (0 if self.half is None else self.half.nbytes) + sum(s.nbytes for s in self.half_spectra.values())
+                + (0 if self.folded is None else self.folded.nbytes))
 
 
 @dataclass
@@ -207,8 +243,9 @@ def _low_pass(n: int, cell_m: float, min_wavelength_m: float) -> np.ndarray | No
     return _lowpass[key]
 
 
-def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
-    """The grid's values on the registration grid (radar at cell size // 2, axes kept)."""
+def _resample(grid: Grid, p: FmtParams, pool: TaskPool | None = None) -> np.ndarray:
+    """The grid's values on the registration grid (radar at cell size // 2, axes kept); ``pool``:
+    the 2 x 2 mean in halves of rows on its threads (the same numbers)."""
     data = np.ascontiguousarray(grid.data, np.float32)
     s = grid.cell_m / p.cell_m
     # registration pixel = s * grid pixel + offset, the vehicle origin -> centre cell
@@ -218,10 +255,11 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
     if s < 1.0 and abs(1.0 / s - round(1.0 / s)) < 1e-6:  # integer reduction: average the cells
         k = int(round(1.0 / s))
         h, w = (data.shape[0] // k) * k, (data.shape[1] // k) * k
-        if k == 2:  # the mean below, summed in numpy's order (bit-identical), without its slow strided reduction
-            pairs = data[:h, 0:w:2] + data[:h, 1:w:2]  # (x00 + x01) + (x10 + x11)
-            data = pairs[0::2] + pairs[1::2]
-            data /= np.float32(4)
+        if k == 2:  # the mean below, summed in numpy's order (bit-identical), in one compiled pass
+            from ._jit import mean2x2
+
+            src, data = data, np.empty((h // 2, w // 2), np.float32)  # ((x00 + x01) + (x10 + x11)) / 4
+            _halves(pool, lambda r0, r1: mean2x2(src[2 * r0:2 * r1], data[r0:r1]), h // 2)
         else:
             data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
@@ -230,35 +268,93 @@ def _resample(grid: Grid, p: FmtParams) -> np.ndarray:
     return cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
-def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True) -> FmtImage:
+def warm_up() -> None:
+    """Load the compiled 2x2 mean (numba, from its cache) now rather than in the first turn."""
+    from ._jit import mean2x2
+
+    mean2x2(np.zeros((2, 2), np.float32), np.empty((1, 1), np.float32))
+
+
+def _quantile(vals: np.ndarray, q: float) -> float:
+    """``np.quantile(vals, q)`` (linear, the default method), the same number, ``vals`` reordered: the
+    two order statistics it interpolates are selected among the values at or above a bound taken
+    low on a sample (the exact ones whenever fewer values than the lower rank lie under it, else the
+    whole array is partitioned as numpy does), then numpy interpolates them with the same weight
+    (its virtual index (n - 1) q, here on two values: the same float64 fraction and formula)."""
+    n = vals.size
+    v = (n - 1) * q  # numpy's virtual index (float64), its floor and fraction
+    k = int(math.floor(v))
+    if n < 4096 or k + 1 >= n:
+        return float(np.quantile(vals, q, overwrite_input=True))
+    sample = vals[::64].copy()
+    j = max(int((q - 0.05) * (sample.size - 1)), 0)  # well under the sample's q-quantile
+    bound = np.partition(sample, j)[j]
+    top = vals[vals >= bound]
+    below = n - top.size
+    if below > k:  # the bound was not under the k-th value: numpy's own selection
+        return float(np.quantile(vals, q, overwrite_input=True))
+    top.partition((k - below, k - below + 1))
+    pair = np.array([top[k - below], top[k - below + 1]], vals.dtype)
+    return float(np.quantile(pair, v - k, overwrite_input=True))
+
+
+def prepare(grid: Grid, params: FmtParams | None = None, linear_power: bool = True, workers: int = 1,
+            pool: TaskPool | None = None) -> FmtImage:
     """Steps 1-5 for one image: resample, threshold (step 2), dB, taper; polar |FFT|.
 
     ``linear_power``: the grid holds power (the panoramic builder); False if already in dB
-    (Navtech PNGs)."""
-    p = params or FmtParams()
-    img = _resample(grid, p)
-    observed = img > 0
+    (Navtech PNGs). ``workers``: scipy.fft's threads for its transform; ``pool``: the element-wise
+    steps in halves of rows on its threads (each cell computed alike: the same numbers)."""
+    with fft_workers(workers):
+        return _prepare(grid, params or FmtParams(), linear_power, pool)
+
+
+def _halves(pool: TaskPool | None, fn: Callable[[int, int], Any], rows: int) -> list:
+    """``fn(r0, r1)`` on the two halves of ``rows`` on the pool's threads (one call without a pool)."""
+    if pool is None or pool.threads < 2:
+        return [fn(0, rows)]
+    h = rows // 2
+    return pool.map(fn, [(0, h), (h, rows)])
+
+
+def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None = None) -> FmtImage:
+    img = _resample(grid, p, pool)
+    n = img.shape[0]
+
+    def observed_of(r0: int, r1: int) -> np.ndarray:
+        part = img[r0:r1]
+        return part[part > 0]
+
+    # the observed values in row order (img[img > 0]), a half of the rows each
+    vals = np.concatenate(_halves(pool, observed_of, n))
     out = np.zeros_like(img)
-    if np.any(observed):
-        vals = img[observed]
+    hann = _hann(out.shape)
+    windowed = np.empty_like(img)  # every cell written by finish()
+    if vals.size:
         if linear_power:
-            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))  # vals: a copy, reordered
+            level = _quantile(vals, p.db_floor_quantile)  # vals: reordered
             level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
-            keep = img > level
-            out[keep] = 10.0 * np.log10(img[keep] / level)
         else:
-            level = float(np.quantile(vals, p.db_floor_quantile, overwrite_input=True))
-            keep = img > level
-            out[keep] = img[keep] - level
-    out *= _taper(p)
-    n = out.shape[0]
+            level = _quantile(vals, p.db_floor_quantile)
+    taper = _taper(p)
+
+    def finish(r0: int, r1: int) -> None:  # threshold, dB, taper and window of rows r0..r1
+        o = out[r0:r1]
+        if vals.size:
+            part = img[r0:r1]
+            keep = part > level
+            o[keep] = 10.0 * np.log10(part[keep] / level) if linear_power else part[keep] - level
+        o *= taper[r0:r1]
+        np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
+
+    _halves(pool, finish, n)
     lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
     cols, _ = _columns(out.shape, lp, True)
     hi = int(p.band[1] * n)
     if out.shape[1] == n and n % 2 == 0 and hi + 4 < n // 2:
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
         # image is the older one of a pair, the translation's spectrum on the full grid (_spectrum)
-        rf = _rfft2(out * _hann(out.shape), max(cols, hi + 4))
+        rf = _rfft2(windowed, max(cols, hi + 4))
         return FmtImage(out, polar_spectrum(out, p, rf), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
 
@@ -274,8 +370,10 @@ def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None) 
     if img.shape[1] == n and n % 2 == 0 and hi + 4 < radii:
         # only the radii up to the band's are resampled (one pixel per radius as over the whole
         # half side: the same numbers), from the spectrum within them
-        spec = _magnitude(img * _hann(img.shape) if rf is None else None, hi + 4, rf, n)
-        spec *= _high_pass(n)
+        m = hi + 4
+        spec = _magnitude(img * _hann(img.shape) if rf is None else None, m, rf, n)
+        c = n // 2  # the high-pass on the square the warp reads (radius < hi, 2 x 2 neighbours): 0 beyond
+        spec[c - m:c + m, c - m:c + m] *= _high_pass(n)[c - m:c + m, c - m:c + m]
         polar = cv2.warpPolar(spec, (hi, p.angles), centre, hi, flags)
     else:
         spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * _hann(img.shape), workers=1))).astype(np.float32)
@@ -286,8 +384,8 @@ def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None) 
 
 
 def _magnitude(img: np.ndarray | None, m: int, rf: np.ndarray | None = None, n: int = 0) -> np.ndarray:
-    """``abs(fftshift(fft2(img)))`` of a real n x n image (n even) within m columns of the DC
-    bin (0 beyond), the same numbers from m columns of its rfft2: fft2 of a real image is its
+    """``abs(fftshift(fft2(img)))`` of a real n x n image (n even) within m rows and m columns of
+    the DC bin (0 beyond), the same numbers from m columns of its rfft2: fft2 of a real image is its
     rfft2 with the other half (and the second half of column 0) filled by symmetry,
     F(-u, -v) = conj F(u, v). ``rf``: the image's rfft2 (at least m columns) if known."""
     if rf is None:
@@ -295,12 +393,14 @@ def _magnitude(img: np.ndarray | None, m: int, rf: np.ndarray | None = None, n: 
         rf = _rfft2(img, m)
     a = np.abs(rf[:, :m])
     # written straight into fftshift's layout (row and column r -> (r + n/2) mod n), no roll:
-    # columns 0..m-1, the second half of column 0, then columns n-m+1..n-1 by symmetry
+    # columns 0..m-1, the second half of column 0, then columns n-m+1..n-1 by symmetry; the rows
+    # h-m..h+m-1 only (frequencies -m..m-1)
     h = n // 2
     out = np.zeros((n, n), a.dtype)
-    out[:, h:h + m] = a[(np.arange(n) - h) % n]
-    out[1:h, h] = a[h - 1:0:-1, 0]
-    out[:, h - m + 1:h] = a[(h - np.arange(n)) % n][:, m - 1:0:-1]
+    rows = np.arange(h - m, h + m)
+    out[h - m:h + m, h:h + m] = a[(rows - h) % n]
+    out[h - m:h, h] = a[m:0:-1, 0]  # the second half of column 0 (its row h: DC, set above)
+    out[h - m:h + m, h - m + 1:h] = a[(h - rows) % n][:, m - 1:0:-1]
     return out
 
 
@@ -355,12 +455,33 @@ def _columns(shape: tuple[int, ...], weight: np.ndarray | None, cache: bool = Fa
 _columns_of: dict[tuple, tuple[int, np.ndarray]] = {}
 
 
+_local = threading.local()
+
+
+def _workers() -> int:
+    """scipy.fft's threads for this thread's transforms (:func:`fft_workers`; 1 by default). pocketfft shares
+    a batch of 1-D transforms between them, each computed alike: the same numbers with any number."""
+    return getattr(_local, "workers", 1)
+
+
+@contextmanager
+def fft_workers(n: int) -> Iterator[None]:
+    """This thread's transforms on ``n`` threads within the block (:func:`_workers`)."""
+    old = _workers()
+    _local.workers = n
+    try:
+        yield
+    finally:
+        _local.workers = old
+
+
 def _rfft2(img: np.ndarray, cols: int) -> np.ndarray:
     """``scipy.fft.rfft2(img)``'s first ``cols`` columns, the same numbers: rfft2 is the real
     transform of the rows then the transform of the columns, here of the kept columns only."""
     if cols >= img.shape[1] // 2 + 1:
-        return scipy.fft.rfft2(img, workers=1)
-    return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=1)[:, :cols], axis=0, workers=1)
+        return scipy.fft.rfft2(img, workers=_workers())
+    w = _workers()
+    return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=w)[:, :cols], axis=0, workers=w)
 
 
 def _whitened(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
@@ -381,12 +502,12 @@ def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape:
     512-cell RADIATE turns came out bit-identical; tests/slam/test_fmt_core.py)."""
     cross = _whitened(fa, fb, weight)
     if cross.shape[1] >= shape[1] // 2 + 1:
-        return scipy.fft.irfft2(cross, s=shape, workers=1)
+        return scipy.fft.irfft2(cross, s=shape, workers=_workers())
     # irfft2 = the inverse transform of the columns, then the real inverse of the rows, scaled once
     # by 1 / (ny nx) at the end: the same numbers, without transforming the columns that are zero
     full = np.zeros((shape[0], shape[1] // 2 + 1), cross.dtype)
-    full[:, :cross.shape[1]] = scipy.fft.ifft(cross, axis=0, norm="forward", workers=1)
-    c = scipy.fft.irfft(full, n=shape[1], axis=1, norm="forward", workers=1)
+    full[:, :cross.shape[1]] = scipy.fft.ifft(cross, axis=0, norm="forward", workers=_workers())
+    c = scipy.fft.irfft(full, n=shape[1], axis=1, norm="forward", workers=_workers())
     c *= c.dtype.type(1.0 / (shape[0] * shape[1]))
     return c
 
@@ -467,10 +588,7 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     normalised curvature of the peak (1 / bins^2)."""
     # centro-symmetric spectrum: fold the two half turns (period 180 deg), less noise
     half = p.angles // 2
-    pa = a.polar[:half] + a.polar[half:2 * half]
-    pb = b.polar[:half] + b.polar[half:2 * half]
-    fa = scipy.fft.rfft(pa, axis=0, workers=1)
-    fb = scipy.fft.rfft(pb, axis=0, workers=1)
+    fa, fb = _folded_spectrum(a, half), _folded_spectrum(b, half)
     cross = np.sum(fb * np.conj(fa), axis=1)  # summed over the radii: zero radial shift (no scale)
     cross /= np.maximum(np.abs(cross), 1e-30)
     c = scipy.fft.irfft(cross, n=half, workers=1)
@@ -487,6 +605,14 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     return theta, snr, curv
 
 
+def _folded_spectrum(img: FmtImage, half: int) -> np.ndarray:
+    """The rfft along the angles of the image's polar spectrum folded onto half a turn: once per
+    image (kept in :attr:`FmtImage.folded`), not once per registration it is in."""
+    if img.folded is None or img.folded.shape[0] != half // 2 + 1:
+        img.folded = scipy.fft.rfft(img.polar[:half] + img.polar[half:2 * half], axis=0, workers=1)
+    return img.folded
+
+
 def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR) -> np.ndarray:
     """b seen with a's axes: J(q) = b(R(theta)^T q), about the centre cell (the radar)."""
     n = img.shape[0]
@@ -499,25 +625,38 @@ def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR) -> 
 
 
 def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
-             prior_theta_rad: float | None = None) -> FmtResult:
+             prior_theta_rad: float | None = None, pool: TaskPool | None = None) -> FmtResult:
     """Steps 6-14: the pose of b's frame in a's (b's radar position and heading seen from a).
 
     ``prior_theta_rad`` (odometry) only breaks a tie between the two rotation candidates
-    whose translation peaks are within 10 % of each other."""
-    p = params or FmtParams()
+    whose translation peaks are within 10 % of each other. ``pool``: threads for the
+    correlations that do not depend on each other (the two candidates, each refinement step's
+    two neighbours, each transform of the others on the pool's threads too); the same result, bit for
+    bit, with or without."""
+    with fft_workers(pool.threads if pool is not None else 1):
+        return _register(a, b, params or FmtParams(), prior_theta_rad, pool)
+
+
+def _register(a: FmtImage, b: FmtImage, p: FmtParams, prior_theta_rad: float | None,
+              pool: TaskPool | None) -> FmtResult:
     if not (np.any(a.image) and np.any(b.image)):
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
-    theta0, snr_r, curv_r = _rotation(a, b, p)
-    tr = _Translator(a, b, p)
+    if pool is not None and pool.threads > 1:
+        # the rotation (this thread) and what the translations need of the pair whatever the rotation
+        # (another): independent, the same numbers in either order
+        (theta0, snr_r, curv_r), tr = pool.map(_call, [(_rotation, a, b, p), (_translator, a, b, p, pool)])
+    else:
+        theta0, snr_r, curv_r = _rotation(a, b, p)
+        tr = _Translator(a, b, p, pool)
     fb = tr.spectrum(theta0)
+    cands = tr.translations([(theta0, fb), (theta0 + math.pi, np.conj(fb))])
     best = None
     # b turned by theta0 + pi is b turned by theta0 then by 180 deg about the centre cell, whose
     # spectrum is the conjugate (a real image), to the window's asymmetry (cv2's Hann is symmetric
     # about (n - 1) / 2, half a cell off the centre): the second candidate's translation without a
     # warp and transform of its own (the same choice of candidate and the same registrations on the
     # Oxford and RADIATE pairs; when it wins, the refinement warps around it anyway)
-    for theta, f in ((theta0, fb), (theta0 + math.pi, np.conj(fb))):
-        cand = tr.translation(theta, f)
+    for cand in cands:
         if best is None:
             best = cand
         elif prior_theta_rad is not None and abs(cand[0] - best[0]) < 0.1 * max(cand[0], best[0]):
@@ -548,6 +687,21 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
     return register(prepare(a, p, linear_power), prepare(b, p, linear_power), p, prior_theta_rad)
 
 
+def _call(fn: Callable[..., Any], *args: object) -> Any:
+    return fn(*args)
+
+
+def _translator(a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None) -> _Translator:
+    """:class:`_Translator` of the pair with b on the coarse grid and a's full-grid spectrum on the
+    coarse rows (when the coarse grid is used): what does not depend on the rotation, ready before
+    the rotation is known."""
+    tr = _Translator(a, b, p, pool)
+    if tr.rows is not None:
+        _half(b)
+        tr.fa_fine  # noqa: B018 - computed here, beside the rotation
+    return tr
+
+
 class _Translator:
     """Steps 10-14 for one pair: the translation of b turned by theta in a's frame.
 
@@ -558,10 +712,11 @@ class _Translator:
     transforms a 4 times smaller image; the peak is still read at full resolution
     (:func:`_coarse_peak`)."""
 
-    def __init__(self, a: FmtImage, b: FmtImage, p: FmtParams):
+    def __init__(self, a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None = None):
         n = a.image.shape[0]
-        self.p, self.n, self.a, self.b = p, n, a, b
+        self.p, self.n, self.a, self.b, self.pool = p, n, a, b, pool
         self._final: dict[float, tuple] = {}
+        self._fa_fine: np.ndarray | None = None
         lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
         self.cols, weight = _columns(a.image.shape, lp, True)
         self.rows = _coarse_rows(n, lp, self.cols) if a.image.shape[1] == n else None
@@ -595,6 +750,17 @@ class _Translator:
             dy, dx, snr, h = _coarse_peak(self.fa, fb, self.weight, self.n, fit=False)
         return snr, theta, -dx * self.p.cell_m, -dy * self.p.cell_m, h
 
+    def translations(self, batch: list[tuple]) -> list[tuple]:
+        """:meth:`translation` of each ``(theta, fb)`` of the batch, in order (on the pool's threads:
+        each is computed from this pair's images alone, so in any order, the same numbers)."""
+        if self.pool is None:
+            return [self.translation(*args) for args in batch]
+        return self.pool.map(self._one_thread, batch)
+
+    def _one_thread(self, *args: object) -> tuple:
+        with fft_workers(1):  # the batch's tasks share the threads: one each
+            return self.translation(*args)  # type: ignore[arg-type]
+
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
         """The translation returned at rotation theta: on the coarse grid, from the full grid's
         spectra (the coarse one only chooses the rotation); otherwise ``cand`` if given."""
@@ -606,8 +772,11 @@ class _Translator:
 
     @property
     def fa_fine(self) -> np.ndarray:
+        """The older image's full-grid spectrum on the coarse rows (once per pair)."""
         assert self.rows is not None
-        return _spectrum(self.a, self.cols, False)[self.rows]
+        if self._fa_fine is None:
+            self._fa_fine = _spectrum(self.a, self.cols, False)[self.rows]
+        return self._fa_fine
 
 
 def _half(img: FmtImage) -> np.ndarray:
@@ -669,7 +838,7 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
     m = n // 2
     coarse = np.zeros((m, m // 2 + 1), cross.dtype)
     coarse[:, :cross.shape[1]] = cross
-    c = scipy.fft.irfft2(coarse, s=(m, m), workers=1)  # = 4 x the n x n surface every other cell
+    c = scipy.fft.irfft2(coarse, s=(m, m), workers=_workers())  # = 4 x the n x n surface every other cell
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
     freqs, col_f, col_w = _window_freqs(n, cross.shape[1])
     spec = cross.astype(np.complex128)
@@ -736,6 +905,9 @@ def _refine_rotation(tr: _Translator, best: tuple, step: float) -> tuple[tuple, 
         return done[t]
 
     for _ in range(3):
+        todo = [t for t in (theta - step, theta + step) if t not in done]
+        if len(todo) == 2 and tr.pool is not None:  # both neighbours at once, on the pool's threads
+            done.update(zip(todo, tr.translations([(t,) for t in todo]), strict=True))
         lo = at(theta - step)
         hi = at(theta + step)
         if lo[0] > mid[0] and lo[0] >= hi[0]:
