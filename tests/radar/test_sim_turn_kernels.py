@@ -214,3 +214,17 @@ def test_a_turn_drawn_then_synthesized_is_spectra() -> None:
             got = syn.synthesize(*drawn, 30, p)
             _bits_equal(got[0], want[0])
             _bits_equal(got[1], want[1])
+
+
+def test_the_skirt_selection_is_the_numpy_expression() -> None:
+    from impala_radar.simulator.receiver import skirt_echoes
+
+    rng = np.random.default_rng(15)
+    n = 50000
+    power, range_m = 10.0 ** rng.uniform(-16, -6, n), rng.uniform(0.3, 200.0, n)
+    ramp_s, enbw, noise, l_ref_dbc_hz, f_ref_hz = 1e-3, 1.5, 2e-15, -95.0, 1e5
+    tau_s = 2.0 * range_m / 299_792_458.0
+    flat = power * 10.0 ** (l_ref_dbc_hz / 10.0) * (2.0 * math.pi * f_ref_hz * tau_s) ** 2
+    want = np.nonzero(flat * enbw / ramp_s >= 0.1 * noise)[0]
+    assert 0 < len(want) < n  # both sides exercised
+    _bits_equal(skirt_echoes(power, range_m, ramp_s, enbw, noise, l_ref_dbc_hz, f_ref_hz), want)
