@@ -168,6 +168,11 @@ class RadarSimulator:
     def echoes(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> Echoes:
         """The echoes of the beams acquired at ``t_ns`` (static, movers, leakage): what :meth:`turn`
         gives the synthesizer; ``rng`` draws the vegetation's jitter."""
+        return Echoes.concat(self.echo_parts(trajectory, t_ns, rng))
+
+    def echo_parts(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> list[Echoes]:
+        """:meth:`echoes` in parts, not concatenated (the synthesizer joins them, on its own thread
+        with threads)."""
         pose = trajectory.pose(t_ns)
         speed, _ = trajectory.velocity(t_ns)
         radar_xy = np.ascontiguousarray(pose[:, :2])
@@ -178,14 +183,13 @@ class RadarSimulator:
         r_lim = self.range_limit_m(float(np.max(np.abs(speed))))
         segs = self.world.segments_near(center, r_lim + spread)
         discs = self.world.discs_near(center, r_lim + spread) if self.params.shadows else np.zeros((0, 6))
-        parts = [self._static(radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs,
-                              t_ns, rng)]
+        parts = self._static(radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs, t_ns, rng)
         if self.world.movers:
             parts.append(self._movers(t_ns, radar_xy, radar_vxy, beam_dir, segs, discs))
         if self.params.leakage_dbm is not None:
             p_w = 10.0 ** (self.params.leakage_dbm / 10.0) * 1e-3
             parts.append(Echoes(*leakage_echoes(len(t_ns), p_w, self.params.leakage_range_m)))
-        return Echoes.concat(parts)
+        return parts
 
     def _windows(self, rc, sz, rcs, area):
         """Azimuth half-window per scatterer (:mod:`.antenna`): where its echo can still
@@ -204,8 +208,14 @@ class RadarSimulator:
                                floor)
         # distributed clutter: main lobe only (its sidelobe returns are the pattern's
         # integrated sidelobe ratio, about -40 dB, of its main-lobe return)
-        level = np.where(area > 0, np.maximum(level, 10.0 ** (-p.clutter_cut_db / 10.0)), level)
-        return np.minimum(self._pattern.window_rad(level), self._cut_rad)
+        clutter_level = 10.0 ** (-p.clutter_cut_db / 10.0)
+        level = np.where(area > 0, np.maximum(level, clutter_level), level)
+        # most clutter sits at clutter_level: its window looked up once (window_rad is element-wise)
+        common = level == clutter_level
+        window = np.empty(len(level))
+        window[common] = self._pattern.window_rad(clutter_level)
+        window[~common] = self._pattern.window_rad(level[~common])
+        return np.minimum(window, self._cut_rad)
 
     def _scene(self, idx, center, rng):
         """Static scatterers of a turn: the world's, clutter tiles split for developed
@@ -253,11 +263,12 @@ class RadarSimulator:
         return sx, sy, sz, rcs, phase, area, ghost
 
     def _static(self, radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs, t_ns,
-                rng) -> Echoes:
+                rng) -> list[Echoes]:
+        """The static scatterers' echoes of a turn, in parts (one per thread's run of pairs)."""
         w = self.world
         idx = w.query(center, r_lim + spread)
         if idx.size == 0:
-            return Echoes.concat([])
+            return []
         self._segs = segs
         sx, sy, sz, rcs, phase, area, ghost = self._scene(idx, center, rng)
         dxc, dyc = sx - center[0], sy - center[1]
@@ -308,7 +319,7 @@ class RadarSimulator:
         parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
         self._pairs_hint = sum(len(p[0]) for p in parts) * 5 // 4  # the buffers' first size next turn
         if not parts:
-            return Echoes.concat([])
+            return []
         # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
         if len(parts) == 1:  # one run: its arrays as they are
             beam, jj, d = parts[0]
@@ -318,7 +329,7 @@ class RadarSimulator:
 
         return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
 
-    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> Echoes:
+    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> list[Echoes]:
         """:func:`.spectra.pair_echoes` of the static pairs (beam, scatterer ``jj``, ``d`` from
         :func:`.kernels.block_pairs`): compiled arithmetic around numpy's transcendental functions,
         and the synthesizer's culling of weak echoes done here (element-wise: the same echoes reach it).
@@ -343,7 +354,7 @@ class RadarSimulator:
                                                10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
                                                self.synth._cull_w))]
 
-        return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
+        return self._map_chunks(physics, range(len(beam)), min_len=4096)  # parts: joined by the synthesizer
 
     def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
         """``fn`` of ``threads`` contiguous runs of ``items`` (lists), concatenated in run order: the
@@ -441,7 +452,7 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         n = int(np.searchsorted(t_ns, end))  # beams acquired before the end
         job = None
         if n:
-            e, draws = sim.synth.draw(sim.echoes(trajectory, t_ns[:n], rng), n, rng)
+            e, draws = sim.synth.draw(sim.echo_parts(trajectory, t_ns[:n], rng), n, rng)
             job = (turn, t_ns, n, pipe.submit(synthesize, e, draws, n) if pipe else synthesize(e, draws, n))
             if pipe is None:
                 pending, job = job, None
