@@ -303,34 +303,27 @@ class RadarSimulator:
         segs_c = np.ascontiguousarray(segs, float).reshape(-1, 4)
         no_behind = np.zeros(0, bool)
 
-        def run(blocks: range):  # the pairs of a run of blocks: their discs here, the rest in one compiled pass
+        def run(blocks: range):  # a run of blocks: their discs, pairs (one compiled pass), then echoes
             occ = [self._block_discs(discs, radar_xy[(b0 + min(n, b0 + bb) - 1) // 2], float(mids[b0 // bb]),
                                      float(halves[b0 // bb]) + self._cut_rad, t_ns[(b0 + min(n, b0 + bb) - 1) // 2])
                    for b0 in blocks]
             occ_lo = np.concatenate([[0], np.cumsum([len(o) for o in occ])]).astype(np.intp)
             occ_all = np.ascontiguousarray(np.concatenate(occ), float) if occ_lo[-1] else np.zeros((0, 6))
-            return [kernels.block_pairs(
+            beam, jj, d = kernels.block_pairs(
                 blocks.start // bb, (blocks.stop - 1) // bb + 1, bb, mids, halves, far, far_bearing, near, bearing,
                 slack, far_slack, rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r_lim**2, ghost,
                 no_behind if behind is None else behind, behind is not None, segs_c, occ_all, occ_lo,
-                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))]
+                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))
+            return [(len(beam), self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area) if len(beam) else None)]
 
-        # blocks are independent: contiguous runs of them on the threads, joined in block order
-        parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
-        self._pairs_hint = sum(len(p[0]) for p in parts) * 5 // 4  # the buffers' first size next turn
-        if not parts:
-            return []
-        # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
-        if len(parts) == 1:  # one run: its arrays as they are
-            beam, jj, d = parts[0]
-        else:
-            beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-            d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
+        # blocks are independent: contiguous runs of them on the threads, their echoes joined in block order
+        # (by the synthesizer: the physics is element-wise per pair, so the runs' echoes are those of all pairs)
+        parts = self._map_chunks(run, range(0, n, bb))
+        self._pairs_hint = sum(k for k, _ in parts) * 5 // 4  # the buffers' first size next turn
+        return [e for _, e in parts if e is not None]
 
-        return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
-
-    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> list[Echoes]:
-        """:func:`.spectra.pair_echoes` of the static pairs (beam, scatterer ``jj``, ``d`` from
+    def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> Echoes:
+        """:func:`.spectra.pair_echoes` of static pairs (beam, scatterer ``jj``, ``d`` from
         :func:`.kernels.block_pairs`): compiled arithmetic around numpy's transcendental functions,
         and the synthesizer's culling of weak echoes done here (element-wise: the same echoes reach it).
         Element-wise per pair, so runs of pairs on the threads joined in order give the same bits."""
@@ -341,20 +334,13 @@ class RadarSimulator:
         k_eq = p.pt_g2_w(cfg) * lam**2 / (4.0 * math.pi) ** 3  # received_power_w's constant
         sin_ref = math.sin(math.radians(p.grazing_ref_deg)) if p.grazing_ref_deg is not None else 1.0
         rvx, rvy = radar_vxy[:, 0].copy(), radar_vxy[:, 1].copy()
-
-        def physics(run):
-            sl = slice(run.start, run.stop)
-            b, q, dd = beam[sl], jj[sl], d[:, sl]
-            r_h, dz, range_m, radial = kernels.pair_ranges(b, q, dd, sz, cfg.height_m, rvx, rvy)
-            g_az = self._pattern.gain2(np.arctan2(dd[3], dd[2]))
-            e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
-                                                     -8.0 * math.log(2.0)))
-            return [Echoes(*kernels.pair_power(b, q, dd, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
-                                               p.grazing_ref_deg is not None, sin_ref, k_eq,
-                                               10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
-                                               self.synth._cull_w))]
-
-        return self._map_chunks(physics, range(len(beam)), min_len=4096)  # parts: joined by the synthesizer
+        r_h, dz, range_m, radial = kernels.pair_ranges(beam, jj, d, sz, cfg.height_m, rvx, rvy)
+        g_az = self._pattern.gain2(np.arctan2(d[3], d[2]))
+        e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
+                                                 -8.0 * math.log(2.0)))
+        return Echoes(*kernels.pair_power(beam, jj, d, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
+                                          p.grazing_ref_deg is not None, sin_ref, k_eq,
+                                          10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise, self.synth._cull_w))
 
     def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
         """``fn`` of ``threads`` contiguous runs of ``items`` (lists), concatenated in run order: the
