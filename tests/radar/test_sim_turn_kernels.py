@@ -72,6 +72,18 @@ def test_a_ramps_echoes_are_prepared_as_the_numpy_synthesizer_did() -> None:
             _bits_equal(amp32, np.sqrt(2.0 * e.power_w[ok]).astype(np.float32))
 
 
+def test_a_ramps_echoes_in_parts_are_prepared_as_their_concatenation() -> None:
+    rng = np.random.default_rng(16)
+    syn = Synthesizer(preset("impala"), RadarParams())
+    e = _echoes(rng, 30000, 40)
+    cuts = [0, 1, 7000, 7000, 21000, 30000]
+    parts = [Echoes(*(getattr(e, f)[a:b] for f in ("beam", "range_m", "radial_mps", "power_w", "phase_rad")))
+             for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+    for mode in (1, 2):
+        for got, want in zip(syn._prepare(parts, mode), syn._prepare(e, mode), strict=True):
+            _bits_equal(got, want)
+
+
 def test_spread_fold_is_the_bincount_grid_folded() -> None:
     rng = np.random.default_rng(13)
     n, n_beams, width, m_grid = 20000, 12, 6, 576

@@ -342,20 +342,34 @@ class RadarSimulator:
                                           p.grazing_ref_deg is not None, sin_ref, k_eq,
                                           10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise, self.synth._cull_w))
 
-    def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
-        """``fn`` of ``threads`` contiguous runs of ``items`` (lists), concatenated in run order: the
-        result does not depend on the thread count or on scheduling."""
-        k = min(self.threads, len(items) // min_len)
+    def _map_chunks(self, fn, items: range, min_len: int = 2, per_thread: int = 3) -> list:
+        """``fn`` of contiguous runs of ``items`` (lists), concatenated in run order: the result does
+        not depend on the thread count or on scheduling. With threads, ``per_thread`` runs a thread
+        are handed out in order to whichever thread is free (this one included), so a helper busy
+        elsewhere (or descheduled) does not leave this thread waiting for a fixed half."""
+        k = min(self.threads * per_thread, len(items) // min_len) if self.threads > 1 else 1
         if k <= 1:
             return fn(items)
         cuts = [items.start + len(items) * i // k * items.step for i in range(k + 1)]
         runs = [range(cuts[i], cuts[i + 1], items.step) for i in range(k)]
-        pool = _pool(k - 1)
-        futures = [pool.submit(fn, r) for r in runs[1:]]
-        out = fn(runs[0])  # this thread takes the first run
+        results: list = [None] * k
+        order = iter(range(k))
+        lock = threading.Lock()
+
+        def work() -> None:
+            while True:
+                with lock:  # each run handed out once
+                    i = next(order, None)
+                if i is None:
+                    return
+                results[i] = fn(runs[i])
+
+        pool = _pool(self.threads - 1)
+        futures = [pool.submit(work) for _ in range(self.threads - 1)]
+        work()
         for f in futures:
-            out.extend(f.result())
-        return out
+            f.result()
+        return [x for r in results for x in r]
 
     def _swept_mover_discs(self, t_ns, n_samples: int = 9):
         """The movers' discs at ``n_samples`` times of the turn, widened by the motion between."""

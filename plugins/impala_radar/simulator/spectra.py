@@ -456,12 +456,10 @@ class Synthesizer:
 
     def synthesize(self, e: Echoes | list[Echoes], draws: list, n_beams: int, pool=None) -> tuple[np.ndarray,
                                                                                                  np.ndarray]:
-        """:meth:`spectra` once :meth:`draw` has culled the echoes (or their parts, concatenated here)
-        and drawn; per ramp, one compiled pass gives each echo its beat frequency, phase and kernel values
+        """:meth:`spectra` once :meth:`draw` has culled the echoes (or their parts, read in order: never
+        concatenated) and drawn; per ramp, one compiled pass gives each echo its beat frequency, phase and kernel values
         (:meth:`_prepare`), then the grid, IFFT and spectrum. With a ``pool``, the down ramp runs there
         beside the up ramp."""
-        if not isinstance(e, Echoes):
-            e = Echoes.concat(e)
         if self.single_ramp:
             return self._ramp(e, 0, n_beams, draws[0]), np.zeros((n_beams, 0), np.float32)
         if pool is None:
@@ -469,22 +467,31 @@ class Synthesizer:
         down = pool.submit(self._ramp, e, 2, n_beams, draws[1])
         return self._ramp(e, 1, n_beams, draws[0]), down.result()
 
-    def _prepare(self, e: Echoes, mode: int):
+    def _prepare(self, e: Echoes | list[Echoes], mode: int):
         """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
-        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`)."""
+        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`).
+        ``e`` may be the parts of the echoes: the same as on their concatenation, without it."""
         from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
+        parts = [e] if isinstance(e, Echoes) else e
+        n = sum(len(q.beam) for q in parts)
+        f_all, arg = np.empty(n), np.empty((n, _KERNEL_WIDTH), np.float32)
+        base, ph32, amp32 = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, np.float32)
         c = self.config
         m_grid = self.n_grid
-        return synth_kernels.ramp_echoes(
-            np.ascontiguousarray(e.beam), *(np.ascontiguousarray(a, float) for a in (e.range_m, e.radial_mps,
-                                                                                     e.power_w, e.phase_rad)),
-            mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
-            2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
-            m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
-            np.float32(_KERNEL_BETA))
+        i = m = 0
+        for q in parts:
+            m = synth_kernels.ramp_echoes(
+                np.ascontiguousarray(q.beam), *(np.ascontiguousarray(a, float) for a in (
+                    q.range_m, q.radial_mps, q.power_w, q.phase_rad)),
+                mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
+                2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
+                m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
+                np.float32(_KERNEL_BETA), f_all, arg, base, ph32, amp32, i, m)
+            i += len(q.beam)
+        return f_all, arg[:m], base[:m], ph32[:m], amp32[:m]
 
-    def _ramp(self, e: Echoes, mode: int, n_beams: int, draws) -> np.ndarray:
+    def _ramp(self, e: Echoes | list[Echoes], mode: int, n_beams: int, draws) -> np.ndarray:
         """Power spectra of one ramp (``mode`` as :meth:`_prepare`) of the echoes ``e`` with its ``draws``:
         spread, IFFT, noise, window, FFT, then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
         z = self._grid(*self._prepare(e, mode)[1:], n_beams)

@@ -117,22 +117,18 @@ def _mod_2pi(a: float) -> float:
 
 @numba.njit(cache=True, nogil=True)
 def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset_m, c_doppler, c_half, k_phase,
-                half_fs, scale, m_grid, row, offsets, u_scale, beta):
+                half_fs, scale, m_grid, row, offsets, u_scale, beta, f_all, arg, base, ph32, amp32, i_at, m_at):
     """One ramp's echoes as :meth:`.spectra.Synthesizer.spectra` and ``signal`` prepare them, in
     one pass: beat frequency f (``mode`` 0 single ramp f_r + 2 f_d, 1 up f_r + f_d, 2 down
     f_r - f_d) and phase (range phase -+ the half-ramp motion), then for the echoes with
     |f| < fs/2 the exponents of the kernel at their grid points (:func:`kernel_arguments`),
     their first grid index, the phase mod 2 pi and the amplitude sqrt(2 P) in float32.
-    Returns (f for every echo, arg, base, phase32, amp32)."""
+    Written into f_all from ``i_at`` (every echo) and into arg, base, ph32, amp32 from ``m_at`` (those
+    in the band; the echoes may come in parts, one call each); returns where the next part's go."""
     n, width = beam.shape[0], offsets.shape[0]
-    f_all = np.empty(n)
-    arg = np.empty((n, width), np.float32)  # rows of the echoes in the band first, the rest unused
-    base = np.empty(n, np.intp)
-    ph32 = np.empty(n, np.float32)
-    amp32 = np.empty(n, np.float32)
     one = np.float32(1.0)
     zero = np.float32(0.0)
-    m = 0
+    m = m_at
     for i in range(n):
         f_r = c_range * (range_m[i] - range_offset_m)
         f_d = c_doppler * radial[i]
@@ -142,7 +138,7 @@ def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset
             f = f_r + f_d
         else:
             f = f_r - f_d
-        f_all[i] = f
+        f_all[i_at + i] = f
         if not abs(f) < half_fs:
             continue
         if mode == 0:
@@ -161,7 +157,7 @@ def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset
             u = (offsets[k] - frac) * u_scale
             arg[m, k] = beta * (np.sqrt(max(one - u * u, zero)) - one)  # u is finite: max is np.maximum
         m += 1
-    return f_all, arg[:m], base[:m], ph32[:m], amp32[:m]
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
