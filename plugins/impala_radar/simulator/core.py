@@ -113,6 +113,28 @@ def _pool(workers: int, name: str = "radar-sim") -> ThreadPoolExecutor:
         return _POOLS[workers, name]
 
 
+def _stable_argsort(x: np.ndarray, max_ties: int = 256) -> np.ndarray:
+    """``np.argsort(x, kind="stable")`` of NaN-free keys: numpy's (SIMD) quicksort, 3 times faster,
+    then the indices of each run of equal keys put in increasing order (the stable sort's); with
+    more than ``max_ties`` such runs, the stable sort itself."""
+    order = np.argsort(x)
+    s = x[order]
+    eq = s[1:] == s[:-1]
+    if not eq.any():
+        return order
+    lo = np.flatnonzero(eq[1:] & ~eq[:-1]) + 1  # runs of equal keys: order[lo:hi + 1]
+    if eq[0]:
+        lo = np.concatenate([[0], lo])
+    if len(lo) > max_ties:
+        return np.argsort(x, kind="stable")
+    hi = np.flatnonzero(eq[:-1] & ~eq[1:]) + 1
+    if eq[-1]:
+        hi = np.concatenate([hi, [len(eq)]])
+    for a, b in zip(lo.tolist(), hi.tolist(), strict=True):
+        order[a:b + 1] = np.sort(order[a:b + 1])
+    return order
+
+
 def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
     """Scatterers that a disc may shadow during the turn: on a polar map around the turn
     centre (bins of ``bin_rad``), each bin keeps the nearest distance of the discs covering
@@ -289,7 +311,7 @@ class RadarSimulator:
         r_near = max(3.0, spread / math.sin(math.radians(5.0)))
         near = np.nonzero(rc <= r_near)[0]
         far = np.nonzero(rc > r_near)[0]
-        far = far[np.argsort(bearing[far], kind="stable")]
+        far = far[_stable_argsort(bearing[far])]
         far_bearing = bearing[far]
         far_slack = (float(window[far].max()) if far.size else 0.0) + math.asin(min(1.0, spread / r_near))
         from . import kernels  # numba: compiled (cached) at the first call, not at import
@@ -459,8 +481,8 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         if pending is not None:
             k, t_k, n_k, spectra = pending
             up, down = spectra.result() if pipe else spectra
-            for j in range(n_k):
-                yield int(t_k[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), k, j, up[j], down[j], config)
+            for j, t_j, az_j in zip(range(n_k), t_k.tolist(), sim.azimuth_rad.tolist(), strict=False):
+                yield t_j, "beams", RadarBeam(az_j, k, j, up[j], down[j], config)
         if not n:
             return
         pending = job
