@@ -176,6 +176,7 @@ class RadarSimulator:
         self._cut_rad = params.cut_azimuth_rad(config)
         self._pattern = azimuth_pattern(config.beam_width_rad, params.sidelobe_db)
         self._veg = np.isin(world.kind, VEGETATION_KINDS)
+        self._tile_gain = None  # the clutter tiles' exponential RCS factors, by world index (at the first turn)
         self._pairs_hint = 0
 
     def range_limit_m(self, closing_mps: float) -> float:
@@ -256,7 +257,11 @@ class RadarSimulator:
         tile = area > 0  # clutter tiles: exponential RCS around the tile's mean (hashed)
         if tile.any():
             rcs = rcs.copy()
-            rcs[tile] *= -np.log1p(-hash_uniform(idx[tile].astype(np.uint64), 7))
+            if self._tile_gain is None or len(self._tile_gain) != len(w.area_m2):  # once per world: by index only
+                tiles = np.flatnonzero(w.area_m2 > 0)
+                self._tile_gain = np.zeros(len(w.area_m2))
+                self._tile_gain[tiles] = -np.log1p(-hash_uniform(tiles.astype(np.uint64), 7))
+            rcs[tile] *= self._tile_gain[idx[tile]]
         if p.speckle_range_m > 0:
             near = np.nonzero((area > 0) & (np.hypot(sx - center[0], sy - center[1]) < p.speckle_range_m))[0]
             if near.size:

@@ -396,7 +396,8 @@ class Synthesizer:
         (None when off, or when no echo has any: adding zeros to powers >= 0 changes no bit)."""
         noise = skirts = None
         if self.params.thermal_noise:
-            noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
+            noise = rng.standard_normal((n_beams, self.n_samples))
+            noise *= self.noise_sigma
         p = self.params
         if p.phase_noise_dbc_hz is not None and range_m is not None and len(power_w):
             skirts = phase_noise_skirts(
