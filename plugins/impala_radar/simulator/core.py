@@ -40,10 +40,13 @@ draws) then :meth:`~.Synthesizer.synthesize` (no randomness).
 Threads (``threads``, default :func:`default_threads`: the cores, at most 2): turns are
 pipelined, turn k's synthesis (NUFFT, spectra, output stage) running on a thread of its own
 while the calling thread computes turn k + 1's echoes and draws its noise (so two turns are in
-memory at most); the blocks and the echo physics of a turn run in contiguous runs, one per
-thread, joined in their order. The random stream is drawn on the calling thread in the
-one-thread order, the compiled loops release the GIL, so does numpy on large arrays. A mission
-is the same bit for bit whatever the thread count.
+memory at most); a turn's blocks are cut into contiguous runs (3 a thread), which the threads
+take in order whenever one is free (the calling thread too, so a helper busy with the synthesis
+never leaves it waiting for a fixed half); each run's pairs and their echoes are computed by the
+thread that took it, and the runs' echoes reach the synthesizer as parts, read in run order
+(never concatenated). The random stream is drawn on the calling thread in the one-thread order,
+the compiled loops release the GIL, so does numpy on large arrays. A mission is the same bit
+for bit whatever the thread count and the scheduling.
 """
 
 from __future__ import annotations
