@@ -39,7 +39,8 @@ def _fmod_remainder(a: float, b: float) -> float:
 @numba.njit(cache=True, nogil=True, inline="always")
 def remainder(a: float, b: float) -> float:
     """numpy's float remainder (npy_divmod): fmod, moved into [0, b) for b > 0. Inlined in the
-    callers, the call to fmod out of line: a call in every iteration made ``ramp_echoes`` 1.6 times slower."""
+    callers, the call to fmod out of line (``ramp_echoes`` took 1.5 times as long, 6.3 ms against 4.1
+    on a Beynes ramp, with ``a if -b < a < b else fmod(a, b)`` in one expression)."""
     if -b < a < b:  # b > 0 and fmod(a, b) is a itself: npy_divmod's branches without the call
         if a < 0.0:
             return a + b
