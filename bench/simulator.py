@@ -14,7 +14,8 @@ Stages (exclusive CPU time of the functions, by :class:`_Stages` wrappers, summe
 ``scene`` the turn's scatterers (k-d tree query, clutter split, jitter, ghosts, azimuth
 windows, shadow prefilter); ``pairs`` the blocks' candidates, their walls and discs, and the
 (beam, scatterer) pairs in the beams' pattern (one compiled pass, with the discs near each block);
-``echoes`` the pairs' geometry, pattern gain and radar equation; ``movers``; ``blocks`` the rest
+``echoes`` the pairs' geometry, pattern gain and radar equation (with threads, each run of blocks
+has its pairs and echoes computed by the thread that took it); ``movers``; ``blocks`` the rest
 of the turn's echoes (glue, joins); ``spread`` the NUFFT (each ramp's echoes prepared, spread
 onto the grid, inverse FFT); ``noise`` thermal noise and the culling; ``fft`` the windowed
 spectrum; ``phase_noise`` the skirts; ``adc`` the output stage; ``stream`` the rest (beam
@@ -96,7 +97,7 @@ def _instrument() -> _Stages:
         (core.RadarSimulator, "_swept_mover_discs", "pairs"),
         (core.RadarSimulator, "_pair_echoes", "echoes"),
         (core.RadarSimulator, "_movers", "movers"),
-        (core.RadarSimulator, "echoes", "blocks"), (core.RadarSimulator, "_static", "blocks"),
+        (core.RadarSimulator, "echo_parts", "blocks"), (core.RadarSimulator, "_static", "blocks"),
         (spectra.Synthesizer, "draw", "noise"), (spectra.Synthesizer, "_draws", "noise"),
         (spectra, "phase_noise_skirts", "phase_noise"),
         (spectra.Synthesizer, "synthesize", "spread"), (spectra.Synthesizer, "_prepare", "spread"),

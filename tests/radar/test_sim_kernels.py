@@ -150,3 +150,15 @@ def test_tabulated_pattern_gain_is_the_numpy_interpolation() -> None:
     np.testing.assert_array_equal(pat.gain2(d), want)
     assert pat.gain2(d[:3]).tolist() == want[:3].tolist()  # short arrays: the numpy path, the same values
     assert want[-1] == 0.0 and want[-3] == 1.0  # beyond the table nothing; the boresight the peak
+
+
+def test_the_quick_argsort_with_its_ties_reordered_is_the_stable_one() -> None:
+    from impala_radar.simulator.core import _stable_argsort
+
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        n = int(rng.integers(0, 80))
+        x = rng.integers(0, max(1, n // 3), n).astype(float) if rng.random() < 0.6 else rng.uniform(-3, 3, n)
+        x[rng.random(n) < 0.2] = -0.0  # equal to 0.0
+        np.testing.assert_array_equal(_stable_argsort(x, max_ties=int(rng.integers(0, 30))),
+                                      np.argsort(x, kind="stable"))

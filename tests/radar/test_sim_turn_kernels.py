@@ -72,6 +72,18 @@ def test_a_ramps_echoes_are_prepared_as_the_numpy_synthesizer_did() -> None:
             _bits_equal(amp32, np.sqrt(2.0 * e.power_w[ok]).astype(np.float32))
 
 
+def test_a_ramps_echoes_in_parts_are_prepared_as_their_concatenation() -> None:
+    rng = np.random.default_rng(16)
+    syn = Synthesizer(preset("impala"), RadarParams())
+    e = _echoes(rng, 30000, 40)
+    cuts = [0, 1, 7000, 7000, 21000, 30000]
+    parts = [Echoes(*(getattr(e, f)[a:b] for f in ("beam", "range_m", "radial_mps", "power_w", "phase_rad")))
+             for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+    for mode in (1, 2):
+        for got, want in zip(syn._prepare(parts, mode), syn._prepare(e, mode), strict=True):
+            _bits_equal(got, want)
+
+
 def test_spread_fold_is_the_bincount_grid_folded() -> None:
     rng = np.random.default_rng(13)
     n, n_beams, width, m_grid = 20000, 12, 6, 576
@@ -214,3 +226,17 @@ def test_a_turn_drawn_then_synthesized_is_spectra() -> None:
             got = syn.synthesize(*drawn, 30, p)
             _bits_equal(got[0], want[0])
             _bits_equal(got[1], want[1])
+
+
+def test_the_skirt_selection_is_the_numpy_expression() -> None:
+    from impala_radar.simulator.receiver import skirt_echoes
+
+    rng = np.random.default_rng(15)
+    n = 50000
+    power, range_m = 10.0 ** rng.uniform(-16, -6, n), rng.uniform(0.3, 200.0, n)
+    ramp_s, enbw, noise, l_ref_dbc_hz, f_ref_hz = 1e-3, 1.5, 2e-15, -95.0, 1e5
+    tau_s = 2.0 * range_m / 299_792_458.0
+    flat = power * 10.0 ** (l_ref_dbc_hz / 10.0) * (2.0 * math.pi * f_ref_hz * tau_s) ** 2
+    want = np.nonzero(flat * enbw / ramp_s >= 0.1 * noise)[0]
+    assert 0 < len(want) < n  # both sides exercised
+    _bits_equal(skirt_echoes(power, range_m, ramp_s, enbw, noise, l_ref_dbc_hz, f_ref_hz), want)

@@ -90,6 +90,7 @@ class AzimuthPattern:
         self._inv_step = 1.0 / (x[1] - x[0])
         # envelope: beyond x_env(L), g2 < L everywhere (reverse cumulative maximum)
         self._env = np.maximum.accumulate(g2[::-1])[::-1]
+        self._neg_env = -self._env  # ascending: window_rad's search table
 
     def u(self, d_azimuth_rad):
         """Pattern variable of an azimuth offset (u = L sin / lambda, or beam widths if Gaussian)."""
@@ -115,6 +116,6 @@ class AzimuthPattern:
         """Largest azimuth offset where g2 can still reach ``level`` (two-way, linear)."""
         level = np.asarray(level, float)
         # _env is non-increasing in x: index of the last x with env >= level
-        k = np.searchsorted(-self._env, -level, side="right") - 1
+        k = np.searchsorted(self._neg_env, -level, side="right") - 1
         x = np.where(k >= 0, self._x[np.clip(k, 0, len(self._x) - 1)], 0.0)
         return x / self._u_per_rad

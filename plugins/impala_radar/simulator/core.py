@@ -40,10 +40,13 @@ draws) then :meth:`~.Synthesizer.synthesize` (no randomness).
 Threads (``threads``, default :func:`default_threads`: the cores, at most 2): turns are
 pipelined, turn k's synthesis (NUFFT, spectra, output stage) running on a thread of its own
 while the calling thread computes turn k + 1's echoes and draws its noise (so two turns are in
-memory at most); the blocks and the echo physics of a turn run in contiguous runs, one per
-thread, joined in their order. The random stream is drawn on the calling thread in the
-one-thread order, the compiled loops release the GIL, so does numpy on large arrays. A mission
-is the same bit for bit whatever the thread count.
+memory at most); a turn's blocks are cut into contiguous runs (3 a thread), which the threads
+take in order whenever one is free (the calling thread too, so a helper busy with the synthesis
+never leaves it waiting for a fixed half); each run's pairs and their echoes are computed by the
+thread that took it, and the runs' echoes reach the synthesizer as parts, read in run order
+(never concatenated). The random stream is drawn on the calling thread in the one-thread order,
+the compiled loops release the GIL, so does numpy on large arrays. A mission is the same bit
+for bit whatever the thread count and the scheduling.
 """
 
 from __future__ import annotations
@@ -113,6 +116,28 @@ def _pool(workers: int, name: str = "radar-sim") -> ThreadPoolExecutor:
         return _POOLS[workers, name]
 
 
+def _stable_argsort(x: np.ndarray, max_ties: int = 256) -> np.ndarray:
+    """``np.argsort(x, kind="stable")`` of NaN-free keys: numpy's (SIMD) quicksort, 3 times faster,
+    then the indices of each run of equal keys put in increasing order (the stable sort's); with
+    more than ``max_ties`` such runs, the stable sort itself."""
+    order = np.argsort(x)
+    s = x[order]
+    eq = s[1:] == s[:-1]
+    if not eq.any():
+        return order
+    lo = np.flatnonzero(eq[1:] & ~eq[:-1]) + 1  # runs of equal keys: order[lo:hi + 1]
+    if eq[0]:
+        lo = np.concatenate([[0], lo])
+    if len(lo) > max_ties:
+        return np.argsort(x, kind="stable")
+    hi = np.flatnonzero(eq[:-1] & ~eq[1:]) + 1
+    if eq[-1]:
+        hi = np.concatenate([hi, [len(eq)]])
+    for a, b in zip(lo.tolist(), hi.tolist(), strict=True):
+        order[a:b + 1] = np.sort(order[a:b + 1])
+    return order
+
+
 def _maybe_behind(discs, center, spread, bearing, rc, sz, radar_z_m, bin_rad=_POLAR_BIN_RAD):
     """Scatterers that a disc may shadow during the turn: on a polar map around the turn
     centre (bins of ``bin_rad``), each bin keeps the nearest distance of the discs covering
@@ -154,6 +179,7 @@ class RadarSimulator:
         self._cut_rad = params.cut_azimuth_rad(config)
         self._pattern = azimuth_pattern(config.beam_width_rad, params.sidelobe_db)
         self._veg = np.isin(world.kind, VEGETATION_KINDS)
+        self._tile_gain = None  # the clutter tiles' exponential RCS factors, by world index (at the first turn)
         self._pairs_hint = 0
 
     def range_limit_m(self, closing_mps: float) -> float:
@@ -168,6 +194,11 @@ class RadarSimulator:
     def echoes(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> Echoes:
         """The echoes of the beams acquired at ``t_ns`` (static, movers, leakage): what :meth:`turn`
         gives the synthesizer; ``rng`` draws the vegetation's jitter."""
+        return Echoes.concat(self.echo_parts(trajectory, t_ns, rng))
+
+    def echo_parts(self, trajectory, t_ns: np.ndarray, rng: np.random.Generator) -> list[Echoes]:
+        """:meth:`echoes` in parts, not concatenated (the synthesizer joins them, on its own thread
+        with threads)."""
         pose = trajectory.pose(t_ns)
         speed, _ = trajectory.velocity(t_ns)
         radar_xy = np.ascontiguousarray(pose[:, :2])
@@ -178,14 +209,13 @@ class RadarSimulator:
         r_lim = self.range_limit_m(float(np.max(np.abs(speed))))
         segs = self.world.segments_near(center, r_lim + spread)
         discs = self.world.discs_near(center, r_lim + spread) if self.params.shadows else np.zeros((0, 6))
-        parts = [self._static(radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs,
-                              t_ns, rng)]
+        parts = self._static(radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs, t_ns, rng)
         if self.world.movers:
             parts.append(self._movers(t_ns, radar_xy, radar_vxy, beam_dir, segs, discs))
         if self.params.leakage_dbm is not None:
             p_w = 10.0 ** (self.params.leakage_dbm / 10.0) * 1e-3
             parts.append(Echoes(*leakage_echoes(len(t_ns), p_w, self.params.leakage_range_m)))
-        return Echoes.concat(parts)
+        return parts
 
     def _windows(self, rc, sz, rcs, area):
         """Azimuth half-window per scatterer (:mod:`.antenna`): where its echo can still
@@ -204,8 +234,14 @@ class RadarSimulator:
                                floor)
         # distributed clutter: main lobe only (its sidelobe returns are the pattern's
         # integrated sidelobe ratio, about -40 dB, of its main-lobe return)
-        level = np.where(area > 0, np.maximum(level, 10.0 ** (-p.clutter_cut_db / 10.0)), level)
-        return np.minimum(self._pattern.window_rad(level), self._cut_rad)
+        clutter_level = 10.0 ** (-p.clutter_cut_db / 10.0)
+        level = np.where(area > 0, np.maximum(level, clutter_level), level)
+        # most clutter sits at clutter_level: its window looked up once (window_rad is element-wise)
+        common = level == clutter_level
+        window = np.empty(len(level))
+        window[common] = self._pattern.window_rad(clutter_level)
+        window[~common] = self._pattern.window_rad(level[~common])
+        return np.minimum(window, self._cut_rad)
 
     def _scene(self, idx, center, rng):
         """Static scatterers of a turn: the world's, clutter tiles split for developed
@@ -224,7 +260,11 @@ class RadarSimulator:
         tile = area > 0  # clutter tiles: exponential RCS around the tile's mean (hashed)
         if tile.any():
             rcs = rcs.copy()
-            rcs[tile] *= -np.log1p(-hash_uniform(idx[tile].astype(np.uint64), 7))
+            if self._tile_gain is None or len(self._tile_gain) != len(w.area_m2):  # once per world: by index only
+                tiles = np.flatnonzero(w.area_m2 > 0)
+                self._tile_gain = np.zeros(len(w.area_m2))
+                self._tile_gain[tiles] = -np.log1p(-hash_uniform(tiles.astype(np.uint64), 7))
+            rcs[tile] *= self._tile_gain[idx[tile]]
         if p.speckle_range_m > 0:
             near = np.nonzero((area > 0) & (np.hypot(sx - center[0], sy - center[1]) < p.speckle_range_m))[0]
             if near.size:
@@ -253,11 +293,12 @@ class RadarSimulator:
         return sx, sy, sz, rcs, phase, area, ghost
 
     def _static(self, radar_xy, radar_vxy, beam_dir, center, spread, r_lim, segs, discs, t_ns,
-                rng) -> Echoes:
+                rng) -> list[Echoes]:
+        """The static scatterers' echoes of a turn, in parts (one per thread's run of pairs)."""
         w = self.world
         idx = w.query(center, r_lim + spread)
         if idx.size == 0:
-            return Echoes.concat([])
+            return []
         self._segs = segs
         sx, sy, sz, rcs, phase, area, ghost = self._scene(idx, center, rng)
         dxc, dyc = sx - center[0], sy - center[1]
@@ -278,7 +319,7 @@ class RadarSimulator:
         r_near = max(3.0, spread / math.sin(math.radians(5.0)))
         near = np.nonzero(rc <= r_near)[0]
         far = np.nonzero(rc > r_near)[0]
-        far = far[np.argsort(bearing[far], kind="stable")]
+        far = far[_stable_argsort(bearing[far])]
         far_bearing = bearing[far]
         far_slack = (float(window[far].max()) if far.size else 0.0) + math.asin(min(1.0, spread / r_near))
         from . import kernels  # numba: compiled (cached) at the first call, not at import
@@ -292,34 +333,27 @@ class RadarSimulator:
         segs_c = np.ascontiguousarray(segs, float).reshape(-1, 4)
         no_behind = np.zeros(0, bool)
 
-        def run(blocks: range):  # the pairs of a run of blocks: their discs here, the rest in one compiled pass
+        def run(blocks: range):  # a run of blocks: their discs, pairs (one compiled pass), then echoes
             occ = [self._block_discs(discs, radar_xy[(b0 + min(n, b0 + bb) - 1) // 2], float(mids[b0 // bb]),
                                      float(halves[b0 // bb]) + self._cut_rad, t_ns[(b0 + min(n, b0 + bb) - 1) // 2])
                    for b0 in blocks]
             occ_lo = np.concatenate([[0], np.cumsum([len(o) for o in occ])]).astype(np.intp)
             occ_all = np.ascontiguousarray(np.concatenate(occ), float) if occ_lo[-1] else np.zeros((0, 6))
-            return [kernels.block_pairs(
+            beam, jj, d = kernels.block_pairs(
                 blocks.start // bb, (blocks.stop - 1) // bb + 1, bb, mids, halves, far, far_bearing, near, bearing,
                 slack, far_slack, rx, ry, cos_b, sin_b, sx, sy, sz, tan_cut, r_lim**2, ghost,
                 no_behind if behind is None else behind, behind is not None, segs_c, occ_all, occ_lo,
-                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))]
+                self.config.height_m, 0.05, self._pairs_hint * len(blocks) // max(1, -(-n // bb)))
+            return [(len(beam), self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area) if len(beam) else None)]
 
-        # blocks are independent: contiguous runs of them on the threads, joined in block order
-        parts = [p for p in self._map_chunks(run, range(0, n, bb)) if len(p[0])]
-        self._pairs_hint = sum(len(p[0]) for p in parts) * 5 // 4  # the buffers' first size next turn
-        if not parts:
-            return Echoes.concat([])
-        # the physics of all blocks' pairs at once (the same per-pair arithmetic, fewer numpy calls)
-        if len(parts) == 1:  # one run: its arrays as they are
-            beam, jj, d = parts[0]
-        else:
-            beam, jj = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-            d = np.concatenate([p[2] for p in parts], axis=1)  # d[5]: transmission, 1.0 where nothing shadows
-
-        return self._pair_echoes(beam, jj, d, radar_vxy, sz, rcs, phase, area)
+        # blocks are independent: contiguous runs of them on the threads, their echoes joined in block order
+        # (by the synthesizer: the physics is element-wise per pair, so the runs' echoes are those of all pairs)
+        parts = self._map_chunks(run, range(0, n, bb))
+        self._pairs_hint = sum(k for k, _ in parts) * 5 // 4  # the buffers' first size next turn
+        return [e for _, e in parts if e is not None]
 
     def _pair_echoes(self, beam, jj, d, radar_vxy, sz, rcs, phase, area) -> Echoes:
-        """:func:`.spectra.pair_echoes` of the static pairs (beam, scatterer ``jj``, ``d`` from
+        """:func:`.spectra.pair_echoes` of static pairs (beam, scatterer ``jj``, ``d`` from
         :func:`.kernels.block_pairs`): compiled arithmetic around numpy's transcendental functions,
         and the synthesizer's culling of weak echoes done here (element-wise: the same echoes reach it).
         Element-wise per pair, so runs of pairs on the threads joined in order give the same bits."""
@@ -330,35 +364,42 @@ class RadarSimulator:
         k_eq = p.pt_g2_w(cfg) * lam**2 / (4.0 * math.pi) ** 3  # received_power_w's constant
         sin_ref = math.sin(math.radians(p.grazing_ref_deg)) if p.grazing_ref_deg is not None else 1.0
         rvx, rvy = radar_vxy[:, 0].copy(), radar_vxy[:, 1].copy()
+        r_h, dz, range_m, radial = kernels.pair_ranges(beam, jj, d, sz, cfg.height_m, rvx, rvy)
+        g_az = self._pattern.gain2(np.arctan2(d[3], d[2]))
+        e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
+                                                 -8.0 * math.log(2.0)))
+        return Echoes(*kernels.pair_power(beam, jj, d, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
+                                          p.grazing_ref_deg is not None, sin_ref, k_eq,
+                                          10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise, self.synth._cull_w))
 
-        def physics(run):
-            sl = slice(run.start, run.stop)
-            b, q, dd = beam[sl], jj[sl], d[:, sl]
-            r_h, dz, range_m, radial = kernels.pair_ranges(b, q, dd, sz, cfg.height_m, rvx, rvy)
-            g_az = self._pattern.gain2(np.arctan2(dd[3], dd[2]))
-            e_el = np.exp(kernels.elevation_exponent(np.arctan2(dz, r_h), p.elevation_beam_width_rad,
-                                                     -8.0 * math.log(2.0)))
-            return [Echoes(*kernels.pair_power(b, q, dd, g_az, e_el, dz, range_m, range_m**4, radial, rcs, phase, area,
-                                               p.grazing_ref_deg is not None, sin_ref, k_eq,
-                                               10.0 ** (-p.pattern_cut_db / 10.0), p.thermal_noise,
-                                               self.synth._cull_w))]
-
-        return Echoes.concat(self._map_chunks(physics, range(len(beam)), min_len=4096))
-
-    def _map_chunks(self, fn, items: range, min_len: int = 2) -> list:
-        """``fn`` of ``threads`` contiguous runs of ``items`` (lists), concatenated in run order: the
-        result does not depend on the thread count or on scheduling."""
-        k = min(self.threads, len(items) // min_len)
+    def _map_chunks(self, fn, items: range, min_len: int = 2, per_thread: int = 3) -> list:
+        """``fn`` of contiguous runs of ``items`` (lists), concatenated in run order: the result does
+        not depend on the thread count or on scheduling. With threads, ``per_thread`` runs a thread
+        are handed out in order to whichever thread is free (this one included), so a helper busy
+        elsewhere (or descheduled) does not leave this thread waiting for a fixed half."""
+        k = min(self.threads * per_thread, len(items) // min_len) if self.threads > 1 else 1
         if k <= 1:
             return fn(items)
         cuts = [items.start + len(items) * i // k * items.step for i in range(k + 1)]
         runs = [range(cuts[i], cuts[i + 1], items.step) for i in range(k)]
-        pool = _pool(k - 1)
-        futures = [pool.submit(fn, r) for r in runs[1:]]
-        out = fn(runs[0])  # this thread takes the first run
+        results: list = [None] * k
+        order = iter(range(k))
+        lock = threading.Lock()
+
+        def work() -> None:
+            while True:
+                with lock:  # each run handed out once
+                    i = next(order, None)
+                if i is None:
+                    return
+                results[i] = fn(runs[i])
+
+        pool = _pool(self.threads - 1)
+        futures = [pool.submit(work) for _ in range(self.threads - 1)]
+        work()
         for f in futures:
-            out.extend(f.result())
-        return out
+            f.result()
+        return [x for r in results for x in r]
 
     def _swept_mover_discs(self, t_ns, n_samples: int = 9):
         """The movers' discs at ``n_samples`` times of the turn, widened by the motion between."""
@@ -441,15 +482,15 @@ def _beam_stream(sim: RadarSimulator, trajectory, start: int, end: int,
         n = int(np.searchsorted(t_ns, end))  # beams acquired before the end
         job = None
         if n:
-            e, draws = sim.synth.draw(sim.echoes(trajectory, t_ns[:n], rng), n, rng)
+            e, draws = sim.synth.draw(sim.echo_parts(trajectory, t_ns[:n], rng), n, rng)
             job = (turn, t_ns, n, pipe.submit(synthesize, e, draws, n) if pipe else synthesize(e, draws, n))
             if pipe is None:
                 pending, job = job, None
         if pending is not None:
             k, t_k, n_k, spectra = pending
             up, down = spectra.result() if pipe else spectra
-            for j in range(n_k):
-                yield int(t_k[j]), "beams", RadarBeam(float(sim.azimuth_rad[j]), k, j, up[j], down[j], config)
+            for j, t_j, az_j in zip(range(n_k), t_k.tolist(), sim.azimuth_rad.tolist(), strict=False):
+                yield t_j, "beams", RadarBeam(az_j, k, j, up[j], down[j], config)
         if not n:
             return
         pending = job

@@ -26,15 +26,26 @@ __all__ = ["remainder", "static_pairs", "segments_clear", "discs_transmission", 
 
 
 @numba.njit(cache=True, nogil=True)
-def remainder(a: float, b: float) -> float:
-    """numpy's float remainder (npy_divmod): fmod, moved into [0, b) for b > 0."""
-    r = a if -b < a < b else np.fmod(a, b)  # fmod is exact (numba has no math.fmod): a itself when |a| < b
+def _fmod_remainder(a: float, b: float) -> float:
+    r = np.fmod(a, b)  # fmod is exact (numba has no math.fmod)
     if r != 0.0:
         if (b < 0.0) != (r < 0.0):
             r += b
     else:
         r = math.copysign(0.0, b)
     return r
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def remainder(a: float, b: float) -> float:
+    """numpy's float remainder (npy_divmod): fmod, moved into [0, b) for b > 0. Inlined in the
+    callers, the call to fmod out of line (``ramp_echoes`` took 1.5 times as long, 6.3 ms against 4.1
+    on a Beynes ramp, with ``a if -b < a < b else fmod(a, b)`` in one expression)."""
+    if -b < a < b:  # b > 0 and fmod(a, b) is a itself: npy_divmod's branches without the call
+        if a < 0.0:
+            return a + b
+        return a if a != 0.0 else 0.0
+    return _fmod_remainder(a, b)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -77,10 +77,13 @@ def skirt_echoes(power_w, range_m, ramp_s: float, enbw: float, noise_per_bin_w: 
     """Indices of the echoes whose skirts :func:`phase_noise_skirts` draws: those whose flat skirt
     level reaches a tenth of the noise per bin (a subset of the echoes in the same order has the
     same skirts and draws)."""
-    # the flat part of S (df >> 1/tau is never reached here): 4 pi^2 L_ref f_ref^2 tau^2 P
-    tau_s = 2.0 * range_m / 299_792_458.0
-    flat = power_w * 10.0 ** (l_ref_dbc_hz / 10.0) * (2.0 * math.pi * f_ref_hz * tau_s) ** 2
-    return np.nonzero(flat * enbw / ramp_s >= 0.1 * noise_per_bin_w)[0]
+    # the flat part of S (df >> 1/tau is never reached here): 4 pi^2 L_ref f_ref^2 tau^2 P, in one
+    # compiled pass with the arithmetic of the numpy expression (tests/radar/test_sim_turn_kernels.py)
+    from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
+
+    return synth_kernels.skirt_select(np.ascontiguousarray(power_w, float), np.ascontiguousarray(range_m, float),
+                                      10.0 ** (l_ref_dbc_hz / 10.0), 2.0 * math.pi * f_ref_hz, enbw, ramp_s,
+                                      0.1 * noise_per_bin_w)
 
 
 def phase_noise_skirts(beam, f_hz, power_w, range_m, n_beams: int, bin_hz: float, n_bins: int,

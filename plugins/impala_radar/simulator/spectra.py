@@ -396,7 +396,8 @@ class Synthesizer:
         (None when off, or when no echo has any: adding zeros to powers >= 0 changes no bit)."""
         noise = skirts = None
         if self.params.thermal_noise:
-            noise = rng.standard_normal((n_beams, self.n_samples)) * self.noise_sigma
+            noise = rng.standard_normal((n_beams, self.n_samples))
+            noise *= self.noise_sigma
         p = self.params
         if p.phase_noise_dbc_hz is not None and range_m is not None and len(power_w):
             skirts = phase_noise_skirts(
@@ -417,25 +418,33 @@ class Synthesizer:
         """
         return self.synthesize(*self.draw(e, n_beams, rng), n_beams, self.pool)
 
-    def draw(self, e: Echoes, n_beams: int, rng) -> tuple[Echoes, list]:
+    def draw(self, e: Echoes | list[Echoes], n_beams: int, rng) -> tuple[list[Echoes], list]:
         """The echoes kept (weak ones culled) and the random draws of :meth:`spectra`, in its
         order: per ramp (up then down) the thermal noise and the phase-noise skirts. The rest
-        (:meth:`synthesize`) draws nothing, so it may run on another thread, later."""
-        if self.params.thermal_noise and len(e.power_w):
-            strong = e.power_w >= self._cull_w
-            if not strong.all():
-                e = Echoes(e.beam[strong], e.range_m[strong], e.radial_mps[strong],
-                           e.power_w[strong], e.phase_rad[strong])
+        (:meth:`synthesize`) draws nothing, so it may run on another thread, later. ``e`` may be
+        the parts of a turn's echoes (their concatenation, left to :meth:`synthesize`); both steps are
+        element-wise, so part by part is the same as on the whole."""
+        parts = [e] if isinstance(e, Echoes) else list(e)
+        if self.params.thermal_noise:
+            for i, q in enumerate(parts):
+                strong = q.power_w >= self._cull_w
+                if not strong.all():
+                    parts[i] = Echoes(q.beam[strong], q.range_m[strong], q.radial_mps[strong],
+                                      q.power_w[strong], q.phase_rad[strong])
         # the skirts only need the echoes strong enough to have some (the same skirts and draws):
         # found once for both ramps, and their beat frequencies only
-        s = e
         p = self.params
         if p.phase_noise_dbc_hz is not None:
-            k = skirt_echoes(e.power_w, e.range_m, self.ramp_s, self.enbw_bins, self.noise_per_bin_w,
-                             p.phase_noise_dbc_hz, p.phase_noise_offset_hz)
-            s = Echoes(e.beam[k], e.range_m[k], e.radial_mps[k], e.power_w[k], e.phase_rad[k])
-        return e, [self._draws(s.beam, self._beat_hz(s, mode), s.power_w, n_beams, rng, s.range_m)
-                   for mode in self._modes()]
+            sel = []
+            for q in parts:
+                k = skirt_echoes(q.power_w, q.range_m, self.ramp_s, self.enbw_bins, self.noise_per_bin_w,
+                                 p.phase_noise_dbc_hz, p.phase_noise_offset_hz)
+                sel.append(Echoes(q.beam[k], q.range_m[k], q.radial_mps[k], q.power_w[k], q.phase_rad[k]))
+            s = Echoes.concat(sel)
+        else:
+            s = Echoes.concat(parts)
+        return parts, [self._draws(s.beam, self._beat_hz(s, mode), s.power_w, n_beams, rng, s.range_m)
+                       for mode in self._modes()]
 
     def _modes(self) -> tuple[int, ...]:
         return (0,) if self.single_ramp else (1, 2)
@@ -446,10 +455,12 @@ class Synthesizer:
         f_r, f_d = beat_frequencies_hz(e.range_m - self.config.range_offset_m, e.radial_mps, self.config)
         return f_r + 2.0 * f_d if mode == 0 else f_r + f_d if mode == 1 else f_r - f_d
 
-    def synthesize(self, e: Echoes, draws: list, n_beams: int, pool=None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`spectra` once :meth:`draw` has culled the echoes and drawn; per ramp, one compiled
-        pass gives each echo its beat frequency, phase and kernel values (:meth:`_prepare`), then
-        the grid, IFFT and spectrum. With a ``pool``, the down ramp runs there beside the up ramp."""
+    def synthesize(self, e: Echoes | list[Echoes], draws: list, n_beams: int, pool=None) -> tuple[np.ndarray,
+                                                                                                 np.ndarray]:
+        """:meth:`spectra` once :meth:`draw` has culled the echoes (or their parts, read in order: never
+        concatenated) and drawn; per ramp, one compiled pass gives each echo its beat frequency, phase and kernel values
+        (:meth:`_prepare`), then the grid, IFFT and spectrum. With a ``pool``, the down ramp runs there
+        beside the up ramp."""
         if self.single_ramp:
             return self._ramp(e, 0, n_beams, draws[0]), np.zeros((n_beams, 0), np.float32)
         if pool is None:
@@ -457,22 +468,31 @@ class Synthesizer:
         down = pool.submit(self._ramp, e, 2, n_beams, draws[1])
         return self._ramp(e, 1, n_beams, draws[0]), down.result()
 
-    def _prepare(self, e: Echoes, mode: int):
+    def _prepare(self, e: Echoes | list[Echoes], mode: int):
         """(f of every echo, then the kernel exponents, grid indices, phases and amplitudes of
-        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`)."""
+        those in the band) of one ramp: ``mode`` 0 single ramp, 1 up, 2 down (:func:`.synth_kernels.ramp_echoes`).
+        ``e`` may be the parts of the echoes: the same as on their concatenation, without it."""
         from . import synth_kernels  # numba: compiled (cached) at the first call, not at import
 
+        parts = [e] if isinstance(e, Echoes) else e
+        n = sum(len(q.beam) for q in parts)
+        f_all, arg = np.empty(n), np.empty((n, _KERNEL_WIDTH), np.float32)
+        base, ph32, amp32 = np.empty(n, np.intp), np.empty(n, np.float32), np.empty(n, np.float32)
         c = self.config
         m_grid = self.n_grid
-        return synth_kernels.ramp_echoes(
-            np.ascontiguousarray(e.beam), *(np.ascontiguousarray(a, float) for a in (e.range_m, e.radial_mps,
-                                                                                     e.power_w, e.phase_rad)),
-            mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
-            2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
-            m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
-            np.float32(_KERNEL_BETA))
+        i = m = 0
+        for q in parts:
+            m = synth_kernels.ramp_echoes(
+                np.ascontiguousarray(q.beam), *(np.ascontiguousarray(a, float) for a in (
+                    q.range_m, q.radial_mps, q.power_w, q.phase_rad)),
+                mode, 4.0 * c.bandwidth_hz * c.modulation_hz / SPEED_OF_LIGHT_MPS, c.range_offset_m,
+                2.0 * c.f0_hz / SPEED_OF_LIGHT_MPS, 0.5 * self.ramp_s, 4.0 * math.pi / self.lambda_m, 0.5 * self.fs_hz,
+                m_grid / self.fs_hz, float(m_grid), m_grid + _KERNEL_WIDTH - 1, self._offsets, self._u_scale,
+                np.float32(_KERNEL_BETA), f_all, arg, base, ph32, amp32, i, m)
+            i += len(q.beam)
+        return f_all, arg[:m], base[:m], ph32[:m], amp32[:m]
 
-    def _ramp(self, e: Echoes, mode: int, n_beams: int, draws) -> np.ndarray:
+    def _ramp(self, e: Echoes | list[Echoes], mode: int, n_beams: int, draws) -> np.ndarray:
         """Power spectra of one ramp (``mode`` as :meth:`_prepare`) of the echoes ``e`` with its ``draws``:
         spread, IFFT, noise, window, FFT, then the phase-noise skirts of the strong echoes (:mod:`.receiver`)."""
         z = self._grid(*self._prepare(e, mode)[1:], n_beams)

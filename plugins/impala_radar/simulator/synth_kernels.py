@@ -21,7 +21,7 @@ import numpy as np
 from .kernels import remainder
 
 __all__ = ["grid_positions", "kernel_arguments", "spread", "wrap_phase32", "ramp_echoes", "spread_fold",
-           "windowed_samples", "bin_powers"]
+           "windowed_samples", "bin_powers", "skirt_select"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -117,57 +117,47 @@ def _mod_2pi(a: float) -> float:
 
 @numba.njit(cache=True, nogil=True)
 def ramp_echoes(beam, range_m, radial, power, phase, mode, c_range, range_offset_m, c_doppler, c_half, k_phase,
-                half_fs, scale, m_grid, row, offsets, u_scale, beta):
+                half_fs, scale, m_grid, row, offsets, u_scale, beta, f_all, arg, base, ph32, amp32, i_at, m_at):
     """One ramp's echoes as :meth:`.spectra.Synthesizer.spectra` and ``signal`` prepare them, in
     one pass: beat frequency f (``mode`` 0 single ramp f_r + 2 f_d, 1 up f_r + f_d, 2 down
     f_r - f_d) and phase (range phase -+ the half-ramp motion), then for the echoes with
     |f| < fs/2 the exponents of the kernel at their grid points (:func:`kernel_arguments`),
     their first grid index, the phase mod 2 pi and the amplitude sqrt(2 P) in float32.
-    Returns (f for every echo, arg, base, phase32, amp32)."""
+    Written into f_all from ``i_at`` (every echo) and into arg, base, ph32, amp32 from ``m_at`` (those
+    in the band; the echoes may come in parts, one call each); returns where the next part's go."""
     n, width = beam.shape[0], offsets.shape[0]
-    f_all = np.empty(n)
-    ph_all = np.empty(n)
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    m = m_at
     for i in range(n):
         f_r = c_range * (range_m[i] - range_offset_m)
         f_d = c_doppler * radial[i]
         if mode == 0:
             f = f_r + 2.0 * f_d
-            ph = phase[i] + k_phase * range_m[i]
         elif mode == 1:
             f = f_r + f_d
-            ph = phase[i] + k_phase * (range_m[i] - c_half * radial[i])
         else:
             f = f_r - f_d
+        f_all[i_at + i] = f
+        if not abs(f) < half_fs:
+            continue
+        if mode == 0:
+            ph = phase[i] + k_phase * range_m[i]
+        elif mode == 1:
+            ph = phase[i] + k_phase * (range_m[i] - c_half * radial[i])
+        else:
             ph = phase[i] + k_phase * (range_m[i] + c_half * radial[i])
-        f_all[i] = f
-        ph_all[i] = ph
-    keep = np.empty(n, np.intp)
-    m = 0
-    for i in range(n):
-        if abs(f_all[i]) < half_fs:
-            keep[m] = i
-            m += 1
-    frac = np.empty(m, np.float32)
-    base = np.empty(m, np.intp)
-    ph32 = np.empty(m, np.float32)
-    amp32 = np.empty(m, np.float32)
-    for t in range(m):
-        i = keep[t]
-        x = remainder(f_all[i] * scale, m_grid)
+        x = remainder(f * scale, m_grid)
         i0 = math.floor(x)
-        frac[t] = np.float32(x - i0)
-        base[t] = np.intp(beam[i]) * row + np.intp(i0)
-        amp32[t] = np.float32(np.sqrt(2.0 * power[i]))
-    for t in range(m):
-        ph32[t] = np.float32(_mod_2pi(ph_all[keep[t]]))
-    arg = np.empty((m, width), np.float32)
-    one = np.float32(1.0)
-    zero = np.float32(0.0)
-    for t in range(m):
+        frac = np.float32(x - i0)
+        base[m] = np.intp(beam[i]) * row + np.intp(i0)
+        amp32[m] = np.float32(np.sqrt(2.0 * power[i]))
+        ph32[m] = np.float32(_mod_2pi(ph))
         for k in range(width):
-            u = (offsets[k] - frac[t]) * u_scale
-            arg[t, k] = beta * (np.sqrt(max(one - u * u, zero)) - one)  # u is finite: max is np.maximum
-    return f_all, arg, base, ph32, amp32
+            u = (offsets[k] - frac) * u_scale
+            arg[m, k] = beta * (np.sqrt(max(one - u * u, zero)) - one)  # u is finite: max is np.maximum
+        m += 1
+    return m
 
 
 @numba.njit(cache=True, nogil=True)
@@ -240,3 +230,20 @@ def bin_powers(x, n_bins, scale, skirts):
                 p = p + skirts[r, k]
             out[r, k] = p
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def skirt_select(power_w, range_m, l_ref, two_pi_f_ref, enbw, ramp_s, level):
+    """Indices of :func:`.receiver.skirt_echoes`: ``np.nonzero(P l_ref (two_pi_f_ref tau)^2 enbw / ramp_s
+    >= level)``, tau = 2 R / c, with numpy's operations in its order (``x ** 2`` is ``x * x``)."""
+    n = power_w.shape[0]
+    out = np.empty(n, np.intp)
+    m = 0
+    for i in range(n):
+        tau = 2.0 * range_m[i] / 299_792_458.0
+        q = two_pi_f_ref * tau
+        flat = power_w[i] * l_ref * (q * q)
+        if flat * enbw / ramp_s >= level:
+            out[m] = i
+            m += 1
+    return out[:m].copy()
