@@ -96,3 +96,24 @@ def test_grid_bands_cover_every_row_once(uniform):
         finally:
             pool.close()
         assert np.array_equal(got.view(np.int32), want.view(np.int32))
+
+
+def test_beam_normalisation_by_bands_is_the_same_bits():
+    """normalise_beams shared by bands of beams: each beam divided by its median (np.median), a
+    blanked beam by its smallest positive power, an all-zero beam left at 0, as one thread does."""
+    from impala_radar.panoramic.core import normalise_beams
+
+    rng = np.random.default_rng(1)
+    p = rng.exponential(1.0, (401, 576)).astype(np.float32)
+    p[5] = 0.0
+    p[7, :300] = 0.0
+    floor = np.median(p, axis=1)
+    floor[5], floor[7] = 1.0, p[7][p[7] > 0].min()  # the median of beam 7 is 0: its smallest positive power
+    want = p / floor[:, None]
+    for threads in (1, 2, 3, 4):
+        pool = BandPool(threads)
+        try:
+            got = normalise_beams(p, pool)
+        finally:
+            pool.close()
+        assert np.array_equal(got.view(np.int32), want.astype(np.float32).view(np.int32))

@@ -118,9 +118,10 @@ class PanoramicBuilder(Component):
     a power-only radar's floor varies from beam to beam (the Navtech's does by a few dB),
     and after it 1.0 is the floor of every beam (R-SLAM's ``db_floor: 1``).
 
-    ``threads`` (default 2) share the grid's compiled loops by bands of rows (a pool created in
-    ``start``, closed in ``stop``): every cell is computed by the same code whichever thread
-    takes it, so the images are the same bits with 1 thread or more.
+    ``threads`` (default 2) share the beams' normalisation by bands of beams and the grid's
+    compiled loops by bands of rows (a pool created in ``start``, closed in ``stop``): every beam
+    and cell is computed by the same code whichever thread takes it, so the images are the same
+    bits with 1 thread or more.
     """
 
     beams = Input(RadarBeam, maxsize=8192, doc="beams of the rotating radar, in time order")
@@ -153,7 +154,8 @@ class PanoramicBuilder(Component):
                          "beams after its last) for the twist of the previous image; 0: never waits (the turns "
                          "waiting are bounded by it: 5 s of a 4 Hz radar is 20 turns)")
     threads = Param(int, default=2, ge=1, le=4,
-                    doc="threads sharing the grid's compiled loops (images bit-identical whatever the number)")
+                    doc="threads sharing the normalisation and the grid's loops (images bit-identical whatever"
+                    " the number)")
 
     def start(self) -> None:
         self._turn = TurnBuffer()
@@ -310,7 +312,7 @@ class PanoramicBuilder(Component):
         else:
             power = up
         if self.normalise == "beam_median":
-            power = normalise_beams(power)
+            power = normalise_beams(power, self._pool)
         range_max = self.range_max_m or config.range_max_m
         height = config.height_m if self.ground_range else 0.0
         table = AzimuthTable(azimuth)

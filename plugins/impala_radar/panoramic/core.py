@@ -108,10 +108,22 @@ def doppler_compensated_power(up: np.ndarray, down: np.ndarray, azimuth_rad, spe
     return 0.5 * (_shift_rows(up, f_d_bins) + _shift_rows(down, -f_d_bins))
 
 
-def normalise_beams(power: np.ndarray) -> np.ndarray:
+def normalise_beams(power: np.ndarray, pool: BandPool | None = None) -> np.ndarray:
     """Each beam (row) divided by its median power, its floor (float32); a beam whose median
-    is 0 (blanked, all zero) is divided by its smallest positive power, or left at 0."""
+    is 0 (blanked, all zero) is divided by its smallest positive power, or left at 0.
+    ``pool``: its threads share the beams by bands (each beam the same bits)."""
     p = np.asarray(power, np.float32)
+    if pool is None or pool.threads < 2 or p.ndim != 2 or p.shape[0] < 2 * pool.threads or not p.shape[1]:
+        return _normalised(p)
+    out = np.empty(p.shape, np.float32)
+    rows = p.shape[0]
+    cuts = [rows * b // pool.threads for b in range(pool.threads + 1)]
+    pool.run(_normalised, [(p[cuts[b]:cuts[b + 1]], out[cuts[b]:cuts[b + 1]]) for b in range(pool.threads)])
+    return out
+
+
+def _normalised(p: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`normalise_beams` of float32 beams ``p``, into ``out`` if given."""
     if p.ndim == 2 and p.shape[1]:
         from .._median_jit import medians  # here: numba is imported at the first turn, not with the plugin
 
@@ -122,7 +134,7 @@ def normalise_beams(power: np.ndarray) -> np.ndarray:
     if bad.any():
         positive = np.where(p > 0, p, np.inf).min(axis=1)
         floor[bad] = np.where(np.isfinite(positive[bad]), positive[bad], 1.0)
-    return p / floor[:, None].astype(np.float32)
+    return np.divide(p, floor[:, None].astype(np.float32), out=out)
 
 
 @functools.lru_cache(maxsize=4)
