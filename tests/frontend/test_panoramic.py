@@ -241,7 +241,7 @@ def test_compiled_polar_and_bilinear_read_are_opencvs_bit_for_bit():
     ct, st = np.cos(th).astype(np.float32), np.sin(th).astype(np.float32)
     r, bearing = np.empty(n * n, np.float32), np.empty(n * n, np.float32)
     _jit.polar_cells(c, spans, i0, px, py, ct, st, _ATAN_P, False, np.float32(0), np.float32(1), _TWO_PI_F32,
-                     r, bearing)
+                     0, n, 0, r, bearing)
     x, y = np.meshgrid(c, c)
     k = i0.astype(np.intp)
     dx, dy = x - px[k], y - py[k]
@@ -264,8 +264,8 @@ def test_compiled_polar_and_bilinear_read_are_opencvs_bit_for_bit():
     want = cv2.remap(rows, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     want[near] = 0.0
     got = np.zeros((n, n), np.float32)
-    _jit.read_cells(power, order, spans, r_read.ravel(), r_cell.ravel(), map_y.ravel(), offset_m,
-                    np.float32(1.0 / bin_m), np.float32(1.0), got)
+    _jit.read_cells(_jit.pad_polar(power, order), n_beams, 40, spans, 0, n, 0, r_read.ravel(), r_cell.ravel(),
+                    map_y.ravel(), offset_m, np.float32(1.0 / bin_m), np.float32(1.0), got)
     assert np.array_equal(got.view(np.int32), want.view(np.int32))
     assert 0 < np.count_nonzero(got) < got.size
 

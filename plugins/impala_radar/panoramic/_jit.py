@@ -18,7 +18,7 @@ import numba
 import numpy as np
 from numba.core.extending import intrinsic
 
-__all__ = ["polar_cells", "read_cells", "doppler_mean"]
+__all__ = ["polar_cells", "pad_polar", "read_cells", "doppler_mean"]
 
 
 @intrinsic
@@ -48,19 +48,21 @@ def _atan_deg(y, x, p1, p3, p5, p7):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def polar_cells(c, spans, i0, px, py, ct, st, atan_p, uniform, first_rad, per_rad, two_pi,
-                r_out, row_out):  # pragma: no cover - compiled
-    """Each disk cell moved into the frame of its nominal beam i = i0[cell], (u, v) =
-    R(-phi_i) (cell - t_i), then its range and bearing as ``cv2.cartToPolar(u, v)`` gives
-    them (bit for bit), packed row by row over ``spans`` (row j: columns spans[j, 0] to
-    spans[j, 1] - 1; cell (j, k) is at x = c[k], y = c[j]). ``row_out``: with a uniform
-    azimuth table the fractional row mod(bearing - first, 2 pi) per_rad + 1, else the bearing."""
+                j0, j1, k0, r_out, row_out):  # pragma: no cover - compiled
+    """Each disk cell of grid rows j0 to j1 - 1 moved into the frame of its nominal beam
+    i = i0[cell], (u, v) = R(-phi_i) (cell - t_i), then its range and bearing as
+    ``cv2.cartToPolar(u, v)`` gives them (bit for bit), packed row by row over ``spans`` (row j:
+    columns spans[j, 0] to spans[j, 1] - 1; cell (j, k) is at x = c[k], y = c[j]), row j0's
+    first cell at packed index k0. ``row_out``: with a uniform azimuth table the fractional row
+    mod(bearing - first, 2 pi) per_rad + 1, else the bearing. Bands of rows are independent:
+    threads may compute them at once (nogil), each cell the same whichever band holds it."""
     p1, p3, p5, p7, scale = atan_p[0], atan_p[1], atan_p[2], atan_p[3], atan_p[4]
     one, zero = np.float32(1.0), np.float32(0.0)
     m = c.size
     bdx, bdy = np.empty(m, np.float32), np.empty(m, np.float32)
     bc, bs = np.empty(m, np.float32), np.empty(m, np.float32)
-    k = 0
-    for j in range(spans.shape[0]):
+    k = k0
+    for j in range(j0, j1):
         yj = c[j]
         lo = spans[j, 0]
         n = spans[j, 1] - lo
@@ -88,29 +90,40 @@ def polar_cells(c, spans, i0, px, py, ct, st, atan_p, uniform, first_rad, per_ra
         k += n
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def read_cells(power, order, spans, r_read, r, row, offset_m, per_bin, r_min, grid):  # pragma: no cover - compiled
-    """grid[j, k] for the packed disk cells (:func:`polar_cells`' order): the polar image
-    (``power``'s beams in azimuth ``order`` with a wrap row each side, as
-    :meth:`AzimuthTable.rows`) read at bin (r_read - offset) per_bin and fractional row
-    ``row`` as ``cv2.remap(..., INTER_LINEAR, BORDER_CONSTANT 0)`` reads it, bit for bit (fused
-    multiply-adds); 0 where the cell was nearer than r_min to its beam and off the disk (every
-    cell of ``grid`` is written)."""
+@numba.njit(cache=True, nogil=True)
+def pad_polar(power, order):  # pragma: no cover - compiled
+    """The polar image (``power``'s beams in azimuth ``order`` with a wrap row each side, as
+    :meth:`AzimuthTable.rows`) in a zero frame, flat: one column left, two right, one row above
+    and below (width n_bins + 3), what :func:`read_cells` reads."""
     n_beams, n_bins = power.shape
     n_rows = n_beams + 2
-    w = n_bins + 3  # the rows in a zero frame: one column left, two right, one row above and below
+    w = n_bins + 3
     pad = np.zeros((n_rows + 2) * w, np.float32)
     for a in range(n_rows):
         src = power[order[(a - 1) % n_beams]]
         for b in range(n_bins):
             pad[(a + 1) * w + b + 1] = src[b]
+    return pad
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def read_cells(pad, n_beams, n_bins, spans, j0, j1, k0, r_read, r, row, offset_m, per_bin, r_min,
+               grid):  # pragma: no cover - compiled
+    """grid[j, k] for the packed disk cells of grid rows j0 to j1 - 1 (:func:`polar_cells`'
+    order, row j0's first cell at packed index k0): the polar image of ``n_beams`` beams and
+    ``n_bins`` bins (:func:`pad_polar`'s ``pad``) read at bin (r_read - offset) per_bin and
+    fractional row ``row`` as ``cv2.remap(..., INTER_LINEAR, BORDER_CONSTANT 0)`` reads it, bit
+    for bit (fused multiply-adds); 0 where the cell was nearer than r_min to its beam and off
+    the disk (every cell of rows j0 to j1 - 1 is written; other rows are not touched)."""
+    n_rows = n_beams + 2
+    w = n_bins + 3
     zeros_at = n_bins + 1  # four zeros: what a cell reads when its four neighbours are all outside
     zero = np.float32(0.0)
     m = grid.shape[1]
     bfx, bfy, boff = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.uint64)
     wu, one = np.uint64(w), np.uint64(1)  # unsigned offsets: no negative-index wrap in the gathers
-    k = 0
-    for j in range(spans.shape[0]):
+    k = k0
+    for j in range(j0, j1):
         lo = spans[j, 0]
         n = spans[j, 1] - lo
         rr, r0, ry = r_read[k:k + n], r[k:k + n], row[k:k + n]

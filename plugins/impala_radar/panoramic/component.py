@@ -14,6 +14,7 @@ from impala_msgs import RadarBeam, RadarScan, Speed, YawRate
 from ..turns import TurnBuffer
 from .core import (
     AzimuthTable,
+    BandPool,
     doppler_compensated_power,
     grid_geometry,
     integrate_poses,
@@ -116,6 +117,11 @@ class PanoramicBuilder(Component):
     "beam_median"`` each beam is divided by its median power, its noise-and-clutter floor:
     a power-only radar's floor varies from beam to beam (the Navtech's does by a few dB),
     and after it 1.0 is the floor of every beam (R-SLAM's ``db_floor: 1``).
+
+    ``threads`` (default 2) share the beams' normalisation by bands of beams and the grid's
+    compiled loops by bands of rows (a pool created in ``start``, closed in ``stop``): every beam
+    and cell is computed by the same code whichever thread takes it, so the images are the same
+    bits with 1 thread or more.
     """
 
     beams = Input(RadarBeam, maxsize=8192, doc="beams of the rotating radar, in time order")
@@ -147,6 +153,9 @@ class PanoramicBuilder(Component):
                          doc="with a fed-back twist: a complete turn waits at most this long (radar time, "
                          "beams after its last) for the twist of the previous image; 0: never waits (the turns "
                          "waiting are bounded by it: 5 s of a 4 Hz radar is 20 turns)")
+    threads = Param(int, default=2, ge=1, le=4,
+                    doc="threads sharing the normalisation and the grid's loops (images bit-identical whatever"
+                    " the number)")
 
     def start(self) -> None:
         self._turn = TurnBuffer()
@@ -171,9 +180,16 @@ class PanoramicBuilder(Component):
         self._wait_ns = round(self.twist_wait_s * 1e9)
         # the compiled kernels (numba, from its cache) loaded now, before the first beam: at the first
         # turn they made it 0.65 s late, a live radar's first turns then dropped downstream
+        self._pool = BandPool(self.threads)
         power = np.ones((4, 8), np.float32)
         for poses in (np.zeros((4, 3)), np.full((4, 3), 0.01)):  # both loops: without and with motion
-            scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), poses, 1.0, 1.0, 4.0, 0.5)
+            scan_to_grid(normalise_beams(power), np.linspace(0.0, 6.0, 4), poses, 1.0, 1.0, 4.0, 0.5,
+                         pool=self._pool)
+
+    def stop(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.close()
 
     def process(self, t: int) -> None:
         for buf in self._turn.add(t, self.beams.take()):
@@ -296,13 +312,13 @@ class PanoramicBuilder(Component):
         else:
             power = up
         if self.normalise == "beam_median":
-            power = normalise_beams(power)
+            power = normalise_beams(power, self._pool)
         range_max = self.range_max_m or config.range_max_m
         height = config.height_m if self.ground_range else 0.0
         table = AzimuthTable(azimuth)
         self.dropped_beams += table.dropped
         data, (ox, oy) = scan_to_grid(power, azimuth, rel, config.range_per_bin_m, self.cell_m, range_max, height,
-                                      config.range_offset_m, self.range_min_m)
+                                      config.range_offset_m, self.range_min_m, pool=self._pool)
         self.scan.emit(t_ref, RadarScan(first.turn, t_ns, azimuth, up, down, config))
         has_odometry = self.odometer.latest() is not None or self.gyro.latest() is not None
         pose = Pose2D(float(ref[0]), float(ref[1]), wrap_angle(float(ref[2])), frame="odom") if has_odometry else None
