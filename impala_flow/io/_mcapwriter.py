@@ -209,21 +209,9 @@ class McapWriter:
     def add_messages(self, channel_id: int, t_ns: int, parts: list, seq: int, channel_id2: int,
                      payload2: bytes) -> None:
         """:meth:`add_message` of two messages of the same time and sequence (a sample and its
-        mirror), the second's payload one buffer: one call instead of two."""
-        buf = self._buf
-        index = self._index
-        idx = index.get(channel_id)
-        if idx is None:
-            idx = index[channel_id] = []
-        off = len(buf)
-        idx += (t_ns, off)
-        buf += _HEAD
-        for p in parts:
-            buf += p
-        _pack_msg_into(buf, off, _OP_MESSAGE, len(buf) - off - 9, channel_id, seq, t_ns, t_ns)
-        if len(buf) >= self._chunk_size:
-            self.flush_chunk()
-            buf, index = self._buf, self._index
+        mirror), the second's payload one buffer: one call from the writer instead of two."""
+        self.add_message(channel_id, t_ns, parts, seq)
+        buf, index = self._buf, self._index  # a new chunk's if the first message cut one
         idx = index.get(channel_id2)
         if idx is None:
             idx = index[channel_id2] = []
