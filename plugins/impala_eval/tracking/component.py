@@ -141,7 +141,7 @@ class TrackingEvaluator(Component):
 
 def write_tracking_report(folder: Path, figures: dict[str, Any], frames: TrackingFrames, title: str) -> None:
     """metrics.json, tracks.png (Fig. 19), existence.png (Fig. 18)."""
-    from ..report import new_figure
+    from ..report import new_figure, save_figure
 
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "metrics.json").write_text(json.dumps(figures, indent=2, sort_keys=True) + "\n")
@@ -173,7 +173,7 @@ def write_tracking_report(folder: Path, figures: dict[str, Any], frames: Trackin
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{title}: tracks (solid: confirmed, dotted: tentative), truth dashed")
-    fig.savefig(folder / "tracks.png")
+    save_figure(fig, folder / "tracks.png")
     # Fig. 18: existence probability of every track over time
     fig = new_figure(8.0, 4.0)
     ax = fig.add_subplot(1, 1, 1)
@@ -190,7 +190,7 @@ def write_tracking_report(folder: Path, figures: dict[str, Any], frames: Trackin
     ax.set_xlabel("time (s)")
     ax.set_ylabel("existence probability")
     ax.set_title(f"{title}: existence probability of every track")
-    fig.savefig(folder / "existence.png")
+    save_figure(fig, folder / "existence.png")
 
 
 def _colors():  # type: ignore[no-untyped-def]
