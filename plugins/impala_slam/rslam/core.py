@@ -59,7 +59,7 @@ from impala_flow.msgs import Grid
 from ..se2 import between, compose, repeat
 from ..tilemap import TileMap, alpha_weight, warp_grid_to_map
 from .matching import MatchParams, match_to_map
-from .sharing import shared_map
+from .sharing import resolved, shared_map
 
 __all__ = ["RSlamConfig", "RSlamCore"]
 
@@ -205,7 +205,7 @@ class RSlamCore:
         else:
             self.failures += 1
             pose, cov = pred, np.diag([self.cfg.fallback_std_m ** 2] * 2 + [math.radians(1.0) ** 2])
-        return self._merge(t_ns, amp.result() if isinstance(amp, Future) else amp, odom, pose, cov, ok)
+        return self._merge(t_ns, resolved(amp), odom, pose, cov, ok)
 
     def _timed(self, stage: str, fn: Callable, *args: Any) -> Any:
         """fn(*args), its thread CPU added to ``split[stage]``, whichever thread runs it (one
