@@ -99,6 +99,7 @@ class RSlamCore:
         # thread CPU seconds per stage: amplitude, prepare, coarse, fine (matching), update
         self.split: dict[str, float] = {}
         self._alpha_key: tuple | None = None
+        self._rot_hint = 0.0  # the last match's heading minus its prediction: where the next turn's search starts
         self._alpha_img = np.zeros((0, 0), np.float32)
         # threads - 1 helpers: the calling thread always takes its share (close() ends them)
         self._workers = max(0, int(self.cfg.threads) - 1)
@@ -197,9 +198,10 @@ class RSlamCore:
         pred = self.last_prediction = self.predict(t_ns, odom)
         t0 = time.perf_counter()
         m = match_to_map(self.map, amp, pred, self.cfg.match, self.alpha, self.gap_ratio(t_ns), self.split,
-                         self._pool, self._workers)
+                         self._pool, self._workers, self._rot_hint)
         self.match_s += time.perf_counter() - t0
         ok = m.valid and bool(np.all(np.isfinite([m.x_m, m.y_m, m.theta_rad])) and np.all(np.isfinite(m.cov_xyt)))
+        self._rot_hint = math.remainder(m.theta_rad - pred[2], math.tau) if ok else 0.0
         if ok:
             pose, cov = (m.x_m, m.y_m, m.theta_rad), m.cov_xyt
         else:
