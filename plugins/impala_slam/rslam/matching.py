@@ -15,13 +15,14 @@ attracting the peak.
 
 Coarse to fine: the rotations are correlated at ``match_cell_m`` (the map downsampled by
 area averaging; climbed from the expected one, not all of the span: :func:`_coarse`), then
-the best rotation is refined at the map's own cells: half steps climbed from it (at most two
-each way, three rotations when the peak is there) and a parabola through the best three; the
-translation peak, on the surface at that rotation interpolated from those three (quadratic in
-the rotation), is refined to a fraction of a cell by parabolas along x and y. The standard
-deviations come from the peak's 3 dB (half-power) width (seed 1, after eq. 5): a Gaussian of
-the same curvature and height ``h`` above the background has ``sigma^2 = h / |C''|``, i.e. the
-covariance ``h (-H)^-1`` with ``H`` the Hessian of the correlation at the peak.
+the best rotation is refined at the map's own cells: half steps climbed from it (from the
+half step the coarse peaks' parabola points to; at most two each way, three rotations when the
+peak is there) and a parabola through the best three; the translation peak, on the surface at
+that rotation interpolated from those three (quadratic in the rotation), is refined to a
+fraction of a cell by parabolas along x and y. The standard deviations come from the peak's
+3 dB (half-power) width (seed 1, after eq. 5): a Gaussian of the same curvature and height
+``h`` above the background has ``sigma^2 = h / |C''|``, i.e. the covariance ``h (-H)^-1``
+with ``H`` the Hessian of the correlation at the peak.
 
 With a thread pool (R-SLAM's ``threads``), the rotations of each level are shared among the
 threads, the fine panoramic is prepared and the fine templates transformed on a helper while
@@ -329,10 +330,11 @@ def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, 
             weight: Callable[[np.ndarray], np.ndarray] | None,
             split: dict[str, float] | None = None, pool: Executor | None = None,
             workers: int = 0, climb: bool = False,
-            hint_rad: float = 0.0) -> tuple[float, float, float, float, bool, int]:
+            hint_rad: float = 0.0) -> tuple[float, float, float, float, bool, float]:
     """The rotations of the span, the whole window, on cells of ``f`` map cells:
     (x, y, theta) of the best peak, the median of its surface, whether it is on the border, and
-    the side (+-1) of theta the parabola through the best three rotations' peaks leans to.
+    the vertex of the parabola through the best three rotations' peaks (in steps from theta, within
+    +-1; 0 when the best is on the span's edge).
     The rotations are shared with ``workers`` threads of ``pool`` (:func:`shared_map`).
 
     ``climb``: not every rotation of the span (prediction + j step, j = -n .. n) is correlated.
@@ -385,12 +387,9 @@ def _coarse(crops: _MapCrop, grid: Grid | Future, pred_xyt: tuple[float, float, 
     on_edge = i in (0, surf.shape[0] - 1) or j in (0, surf.shape[1] - 1)
     _lap(split, "prepare", t1 - t0)
     _lap(split, "coarse", time.thread_time() - t1 + cpu)
-    # the side of the coarse rotation the coarse peaks' parabola leans to (+1 or -1)
-    side = 1 if 0 < k < len(peaks) - 1 and _parabola(peaks[k - 1], peaks[k], peaks[k + 1])[0] >= 0.0 else -1
-    if k == len(peaks) - 1:
-        side = 1
-    return (a + (ix0 + j + h_c) * cc, a + (iy0 + i + h_c) * cc, float(thetas[k]), float(np.median(surf)), on_edge,
-            side)
+    # where the parabola through the coarse peaks around the best leans (the fine climb starts there)
+    lean = _parabola(peaks[k - 1], peaks[k], peaks[k + 1])[0] if 0 < k < len(peaks) - 1 else 0.0
+    return a + (ix0 + j + h_c) * cc, a + (iy0 + i + h_c) * cc, float(thetas[k]), float(np.median(surf)), on_edge, lean
 
 
 def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, float, float], p: MatchParams,
@@ -455,7 +454,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     crops.read(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
     _lap(split, "prepare", time.thread_time() - t0)
     # the worker prepares the fine panoramic first, then joins the coarse rotations
-    x_c, y_c, th_c, base, on_edge, side = _coarse(crops, grid, pred_xyt, p, f, p.rot_span_deg, p.rot_step_deg,
+    x_c, y_c, th_c, base, on_edge, lean = _coarse(crops, grid, pred_xyt, p, f, p.rot_span_deg, p.rot_step_deg,
                                             p.search_m, weight, split, pool, workers, True, rot_hint_rad)
     t0 = time.thread_time()
 
@@ -468,16 +467,19 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
         fine, cpu_prep = _prepared(resolved(grid), cell, k_f, sm_f, h_f + 1), 0.0
     else:
         fine, cpu_prep = fine_job.result()  # done: the worker took it before the coarse rotations
-    # the three middle rotations are always needed (the climb below starts there): their templates
-    # are transformed by the pool while this thread prepares the map window. With a pool, the
-    # rotation the climb most often takes next (2 half steps towards the side the coarse peaks
-    # lean to: 39 turns in 40 on Beynes climb) is computed with them, 4 correlations on 2 threads
-    # in 2 rounds instead of 3 + 1 in 3 (a wrong guess costs one correlation, not the result)
+    # the climb below starts at the half step c0 nearest the coarse peaks' parabola (its vertex, in
+    # half steps, rounded): the three rotations around it are always needed, and their templates
+    # are transformed by the pool while this thread prepares the map window. Started at the coarse
+    # rotation itself, the climb took a fourth rotation on 39 Beynes turns in 40 (the fine peak was
+    # a half step off); from c0, on 20 in 120 (3.2 fine correlations a turn instead of 3.9, or 4
+    # with the guessed fourth the pool computed before), with the same poses, bit for bit (Beynes
+    # seed 29, RADIATE head, 1 and 2 threads): the climb ends at the same summit from either start
     # (on one thread each template is correlated as soon as it is transformed: its spectrum is
     # still in the cache, 1 ms per rotation cheaper than from memory)
     size_f = _dft_size(n_f)
     threaded = pool is not None and workers >= 1
-    qs = [-1, 0, 1, 2 * side] if threaded else [-1, 0, 1]
+    c0 = int(np.clip(round(2.0 * lean), -1, 1))
+    qs = [c0 - 1, c0, c0 + 1]
     if threaded:
         specs = Shared(pool, workers, lambda q: _template_spectrum(fine, th_c + delta * q, disk_f, size_f, str(q)),
                         qs)
@@ -485,8 +487,8 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
     corr = _Correlator(crop, disk_f.shape[0])
     t1 = time.thread_time()
     _lap(split, "prepare", t1 - t0 + cpu_prep)
-    # climb from the coarse rotation by half steps, at most 2 each way: the 5 rotations of the
-    # span are not all needed when the peak (the usual case) is within the middle three
+    # climb by half steps from c0, at most 2 each way from the coarse rotation: the 5 rotations of
+    # the span are not all needed when the peak (the usual case) is within the three around c0
     if threaded:
         first, cpu_spec = specs.join()
         first, cpu = shared_map(pool, workers, lambda sp: corr.surface(*sp), first)
@@ -500,7 +502,7 @@ def match_to_map(tilemap: TileMap, grid: Grid | Future, pred_xyt: tuple[float, f
             surfaces[q] = corr(fine, th_c + delta * q, disk_f)
         return float(surfaces[q].max())
 
-    q = 0
+    q = c0
     while abs(q) < 2:
         up, here, down = peak(q + 1), peak(q), peak(q - 1)
         if here >= up and here >= down:
