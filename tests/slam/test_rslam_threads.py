@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_slam.rslam._jit import contrast_tail, mean_tile, merge_tile
+from impala_slam.rslam._jit import contrast_box, mean_tile, merge_tile
 from impala_slam.rslam.component import RSlam
 from impala_slam.rslam.core import RSlamConfig, RSlamCore
 from impala_slam.synthetic import SyntheticWorld
@@ -60,25 +60,35 @@ def test_the_compiled_read_equals_crop_with_support():
         assert 0 < new[1].sum() < new[1].size or window[2] == 33  # mapped and unmapped cells in the first
 
 
-def test_the_compiled_contrast_tail_equals_numpy():
-    """contrast()'s last step against the numpy divide (where weight > 1e-3), subtract and
-    multiply it replaces, bit for bit, weights at and around 1e-3 included (NumPy 2 compares a
-    float32 array with a Python float in float32)."""
-    rng = np.random.default_rng(8)
-    img = (rng.random((60, 70)) * 20.0).astype(np.float32)
-    support = (rng.random((60, 70)) > 0.3).astype(np.float32)
-    mean = (rng.random((60, 70)) * 5.0).astype(np.float32)
-    weight = rng.random((60, 70)).astype(np.float32)
-    weight[::7] = np.float32(1e-3)
-    weight[1::7] = np.nextafter(np.float32(1e-3), np.float32(1.0))
-    weight[2::7] = 0.0
-    old = mean.copy()
-    np.divide(old, weight, out=old, where=weight > 1e-3)
-    np.subtract(img, old, out=old)
-    np.multiply(old, support, out=old)
-    new = mean.copy()
-    contrast_tail(img, new, weight, support[:, :])
-    assert np.array_equal(old, new) and np.array_equal(np.signbit(old), np.signbit(new))
+@pytest.mark.parametrize("k", [3, 5, 9, 11, 15])
+def test_the_compiled_contrast_equals_cv2_blur_and_the_numpy_tail(k):
+    """contrast()'s compiled pass against what it replaces, bit for bit: cv2.blur (BORDER_CONSTANT)
+    of img * support and of support, then the numpy divide (where weight > 1e-3), subtract and
+    multiply; on a view and a contiguous image, with a 0/1 support, an empty one and a fractional
+    one whose box means fall at and around 1e-3 (NumPy 2 compares a float32 array with a Python
+    float in float32)."""
+    rng = np.random.default_rng(8 + k)
+    big = (rng.normal(size=(90, 100)) * 20.0).astype(np.float32)
+    img = big[7:80, 3:91]  # a view, rows not contiguous
+    binary = (rng.random(img.shape) > 0.3).astype(np.float32)
+    fractional = (rng.random(img.shape) * np.float32(2e-3)).astype(np.float32)
+    fractional[::5] = np.float32(1e-3)
+    fractional[:, ::7] = 0.0
+    near = 0
+    cases = [(img, s) for s in (binary, fractional, np.zeros_like(binary))]
+    cases.append((np.ascontiguousarray(img), binary))  # the C-contiguous build of the kernel too
+    for img, support in cases:
+        mean = cv2.blur(img * support, (k, k), borderType=cv2.BORDER_CONSTANT)
+        weight = cv2.blur(support, (k, k), borderType=cv2.BORDER_CONSTANT)
+        near += int(((weight > 5e-4) & (weight < 2e-3)).sum())
+        old = mean.copy()
+        np.divide(old, weight, out=old, where=weight > 1e-3)
+        np.subtract(img, old, out=old)
+        np.multiply(old, support, out=old)
+        new = np.empty(img.shape, np.float32)
+        contrast_box(img, support, k, new)
+        assert np.array_equal(old, new) and np.array_equal(np.signbit(old), np.signbit(new))
+    assert near > 100  # the threshold's neighbourhood was exercised
 
 
 def _run(threads: int, world: SyntheticWorld) -> tuple[list, RSlamCore]:
