@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from impala_slam.rslam._jit import contrast_box, mean_tile, merge_tile
+from impala_slam.rslam._jit import contrast_box, db_tail, mean_tile, merge_tile
 from impala_slam.rslam.component import RSlam
 from impala_slam.rslam.core import RSlamConfig, RSlamCore
 from impala_slam.synthetic import SyntheticWorld
@@ -89,6 +89,28 @@ def test_the_compiled_contrast_equals_cv2_blur_and_the_numpy_tail(k):
         contrast_box(img, support, k, new)
         assert np.array_equal(old, new) and np.array_equal(np.signbit(old), np.signbit(new))
     assert near > 100  # the threshold's neighbourhood was exercised
+
+
+def test_the_compiled_db_tail_equals_numpy():
+    """RSlamCore.amplitude's last step against the numpy subtract, multiply and masked copy it
+    replaces, bit for bit: unobserved (0), negative and NaN cells read 0, on a view too."""
+    rng = np.random.default_rng(9)
+    p = (rng.random((70, 90)) * 1e-3).astype(np.float32)
+    p[rng.random(p.shape) < 0.2] = 0.0
+    p[::7, ::5] = np.nan
+    p[3, :10] = -1.0
+    floor = 2e-5
+    for q in (p, p[5:60, 7:80]):
+        a = np.maximum(q, np.float32(floor))
+        cv2.log(a, dst=a)  # ln max(p, floor), as RSlamCore.amplitude takes it
+        old = a.copy()
+        old -= np.float32(math.log(floor))
+        old *= np.float32(10.0 / math.log(10.0))
+        np.copyto(old, np.float32(0.0), where=np.logical_not(np.greater(q, 0.0)))
+        new = a.copy()
+        db_tail(new, q, np.float32(math.log(floor)), np.float32(10.0 / math.log(10.0)))
+        assert np.array_equal(old, new) and np.array_equal(np.signbit(old), np.signbit(new))
+        assert (new == 0).sum() > 0.2 * new.size and np.isfinite(new).all()
 
 
 def _run(threads: int, world: SyntheticWorld) -> tuple[list, RSlamCore]:

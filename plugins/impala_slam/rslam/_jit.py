@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["contrast_box", "merge_tile", "mean_tile"]
+__all__ = ["contrast_box", "db_tail", "merge_tile", "mean_tile"]
 
 
 # one signature each, any-layout float32 images (views of tiles and windows are C-contiguous or not
@@ -19,6 +19,9 @@ __all__ = ["contrast_box", "merge_tile", "mean_tile"]
 # never again at a turn
 _IMG = numba.float32[:, :]
 _CIMG = numba.float32[:, ::1]  # C-contiguous: the compiled loops vectorise (contrast_box: 2x faster than on _IMG)
+# inputs only read may be read-only (a frozen message's image)
+_RIMG = numba.types.Array(numba.float32, 2, "A", readonly=True)
+_RCIMG = numba.types.Array(numba.float32, 2, "C", readonly=True)
 
 
 @numba.njit(numba.boolean(_IMG, _IMG, _IMG, _IMG, numba.boolean), cache=True, nogil=True)
@@ -89,8 +92,9 @@ def _row_sums(v, sup, k, pm, pw, dm, dw):  # pragma: no cover - compiled
         dw[i + 1] = sw
 
 
-@numba.njit([numba.void(_CIMG, _CIMG, numba.int64, _CIMG), numba.void(_IMG, _IMG, numba.int64, _CIMG)], cache=True,
-            nogil=True, error_model="numpy")
+@numba.njit([numba.void(_CIMG, _CIMG, numba.int64, _CIMG), numba.void(_RCIMG, _RCIMG, numba.int64, _CIMG),
+             numba.void(_IMG, _IMG, numba.int64, _CIMG), numba.void(_RIMG, _RIMG, numba.int64, _CIMG)],
+            cache=True, nogil=True, error_model="numpy")
 def contrast_box(img, support, k, out):  # pragma: no cover - compiled
     """:func:`~impala_slam.rslam.matching.contrast` in one pass over the rows: the two k x k box
     means of ``img * support`` and of ``support`` (cv2.blur with BORDER_CONSTANT: its float64
@@ -137,3 +141,19 @@ def contrast_box(img, support, k, out):  # pragma: no cover - compiled
             wt = np.float32(s1 * scale)
             q = m / wt  # computed everywhere (vectorised), kept where weight > 1e-3
             o_row[i] = (g_row[i] - (q if wt > eps else m)) * s_row[i]
+
+
+_F32 = numba.float32
+
+
+@numba.njit([numba.void(_CIMG, _CIMG, _F32, _F32), numba.void(_CIMG, _RCIMG, _F32, _F32),
+             numba.void(_IMG, _IMG, _F32, _F32), numba.void(_IMG, _RIMG, _F32, _F32)], cache=True, nogil=True)
+def db_tail(a, p, log_floor, gain):  # pragma: no cover - compiled
+    """In place in ``a`` (ln max(p, floor)): ``(a - log_floor) * gain`` where p > 0, 0 elsewhere
+    (NaN included), float32: the subtraction, product, comparison and masked copy of
+    :meth:`~impala_slam.rslam.core.RSlamCore.amplitude` in one pass."""
+    zero = np.float32(0.0)
+    for i in range(a.shape[0]):
+        a_row, p_row = a[i], p[i]
+        for j in range(a.shape[1]):
+            a_row[j] = (a_row[j] - log_floor) * gain if p_row[j] > zero else zero

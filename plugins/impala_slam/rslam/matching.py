@@ -102,7 +102,10 @@ def contrast(img: np.ndarray, window_cells: int, support: np.ndarray | None = No
     # cv2.blur of img * support and of support, then (img - mean / weight where weight > 1e-3) * support,
     # in one compiled pass (the same bits; 4 image-sized blurs and passes through memory before)
     out = np.empty(img.shape, np.float32)
-    contrast_box(img, np.asarray(support, np.float32), k, out)
+    support = np.asarray(support, np.float32)
+    if img.flags.writeable != support.flags.writeable:  # the compiled pass takes both read-only or neither
+        img, support = np.require(img, requirements="W"), np.require(support, requirements="W")
+    contrast_box(img, support, k, out)
     return out
 
 
