@@ -35,7 +35,8 @@ What the seed leaves free, and the values chosen (measured on the simulated Beyn
   predicts the heading to about 0.1 deg per turn), matching disk 60 m, coarse level 0.4 m.
   The span's rotations are climbed from the last turn's innovation (match minus prediction:
   on Beynes the gyro's bias, 0.1-0.2 deg a turn), not all correlated: 4 coarse and 3.2 fine
-  correlations a Beynes turn instead of 9 and 4, with the same poses (:func:`match_to_map`).
+  correlations a Beynes turn instead of 9 and 4, with the same poses unless the peaks have two
+  summits within the span (then the climb may find the higher one: :func:`match_to_map`).
 - **Missing turns** (real logs: RADIATE's radar log has gaps of up to 1.6 s): without
   odometry the constant-velocity prediction continues the last increment along its arc
   (:func:`~impala_slam.se2.repeat`), and a prediction spanning more than 1.5 ordinary
