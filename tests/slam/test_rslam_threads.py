@@ -145,6 +145,32 @@ def test_threads_give_the_same_poses_and_map_bit_for_bit():
     assert all(v > 0 for v in c2.split.values())
 
 
+def test_the_climbed_coarse_rotations_give_the_whole_span_poses(monkeypatch):
+    """The coarse level climbs from the expected rotation (the last innovation) instead of
+    correlating every rotation of the span: on a drive whose rotation peaks have one summit it
+    finds the same rotations, so the same poses bit for bit, with fewer correlations (the
+    whole span forced by starting the climb with more rotations than the span has)."""
+    from impala_slam.rslam import matching
+
+    world = SyntheticWorld.random(np.random.default_rng(7), (-60, 140), (-80, 120), 0.03, 3)
+    count = {"n": 0}
+    call = matching._Correlator.__call__
+
+    def counted(self, *args):
+        count["n"] += 1
+        return call(self, *args)
+
+    monkeypatch.setattr(matching._Correlator, "__call__", counted)
+    climbed, _ = _run(1, world)
+    n_climbed, count["n"] = count["n"], 0
+    monkeypatch.setattr(matching, "_CLIMB_START", 10 ** 6)
+    whole, _ = _run(1, world)
+    assert all(ok for _, _, ok in climbed)
+    for (p, cov, ok), (q, cov2, ok2) in zip(climbed, whole, strict=True):
+        assert p == q and ok == ok2 and np.array_equal(cov, cov2)
+    assert n_climbed < count["n"]  # fewer correlations for the same poses
+
+
 def test_the_component_bounds_threads_and_ends_its_helpers():
     with pytest.raises(ValueError):
         RSlam("slam", threads=0)
