@@ -146,23 +146,49 @@ class RadarBeam:
         counted (``count_nonzero`` of ``isfinite``: half the cost of ``isfinite().all()``), and the
         configuration checked once per object. Every beam of a sensor carries the same
         RadarConfig object (a replayed recording's too: its decoder shares equal ones), which
-        is never changed once its beams are out, so the last one found valid is remembered."""
+        is never changed once its beams are out, so the last one found valid is remembered.
+
+        A spectrum that is a view of a read-only array owning its memory (a dataset reader's
+        turn of power, frozen before its first beam is out: rows x bins) is finite when that whole
+        array is: it is checked once, in one pass, and the last one found finite is remembered,
+        so the turn's beams cost no pass each (nor a release of the GIL each, which another
+        thread then holds for up to its switch interval). A turn holding a non-finite value is
+        remembered too, and its beams are checked one by one."""
         up, down = self.up, self.down
-        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or _count_nonzero(_isfinite(up)) == up.size)
-                and (down.size == 0 or down.dtype.kind not in "fc" or _count_nonzero(_isfinite(down)) == down.size)):
-            config = self.config
-            if config is _valid_config[0]:
-                return None
-            why = config.invalid_reason()
-            if why is None:
-                _valid_config[0] = config
-                return None
-            return f"config: {why}"
+        if self.azimuth_rad * 0.0 == 0.0 and (down.size == 0 or down.dtype.kind not in "fc"
+                                               or _count_nonzero(_isfinite(down)) == down.size):
+            base = up.base
+            if base is not None and base is _finite_turn[0]:
+                finite = True
+            elif up.dtype.kind not in "fc":
+                finite = True
+            elif base is not None and base is not _finite_turn[1] and _frozen_owner(base):
+                finite = _count_nonzero(_isfinite(base)) == base.size
+                _finite_turn[0 if finite else 1] = base
+                finite = finite or _count_nonzero(_isfinite(up)) == up.size
+            else:
+                finite = _count_nonzero(_isfinite(up)) == up.size
+            if finite:
+                config = self.config
+                if config is _valid_config[0]:
+                    return None
+                why = config.invalid_reason()
+                if why is None:
+                    _valid_config[0] = config
+                    return None
+                return f"config: {why}"
         return invalid_fields(self)
+
+
+def _frozen_owner(a: object) -> bool:
+    """Whether ``a`` is a numpy array that owns its memory and is read-only (frozen)."""
+    return type(a) is np.ndarray and a.flags.owndata and not a.flags.writeable
 
 
 _isfinite, _count_nonzero = np.isfinite, np.count_nonzero
 _valid_config: list[RadarConfig | None] = [None]  # the last RadarConfig a beam's check found valid
+# [the last frozen turn of power found finite, the last found holding a non-finite value]
+_finite_turn: list[np.ndarray | None] = [None, None]
 
 
 @message("impala.RadarBeam", version=1)
