@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from dataclasses import field
 
 import numpy as np
@@ -148,24 +150,22 @@ class RadarBeam:
         RadarConfig object (a replayed recording's too: its decoder shares equal ones), which
         is never changed once its beams are out, so the last one found valid is remembered.
 
-        A spectrum that is a view of a read-only array owning its memory (a dataset reader's
-        turn of power, frozen before its first beam is out: rows x bins) is finite when that whole
-        array is: it is checked once, in one pass, and the last one found finite is remembered,
-        so the turn's beams cost no pass each (nor a release of the GIL each, which another
-        thread then holds for up to its switch interval). A turn holding a non-finite value is
-        remembered too, and its beams are checked one by one."""
+        A spectrum that is a row of a turn :meth:`check_turn` found finite (a dataset reader's
+        frozen turn of power) needs no pass of its own: a whole turn is checked once, where it
+        is read, and its beams skip 400 passes and 400 releases of the GIL (each of which can
+        cost the calling thread a switch interval when another thread wants the GIL). A frozen
+        turn not checked yet is checked here, once; a turn holding a non-finite value has its
+        beams checked one by one."""
         up, down = self.up, self.down
         if self.azimuth_rad * 0.0 == 0.0 and (down.size == 0 or down.dtype.kind not in "fc"
                                                or _count_nonzero(_isfinite(down)) == down.size):
             base = up.base
-            if base is not None and base is _finite_turn[0]:
+            if base is not None and (ref := _finite_turns.get(id(base))) is not None and ref() is base:
                 finite = True
             elif up.dtype.kind not in "fc":
                 finite = True
-            elif base is not None and base is not _finite_turn[1] and _frozen_owner(base):
-                finite = _count_nonzero(_isfinite(base)) == base.size
-                _finite_turn[0 if finite else 1] = base
-                finite = finite or _count_nonzero(_isfinite(up)) == up.size
+            elif base is not None and base is not _non_finite_turn[0] and _frozen_owner(base):
+                finite = RadarBeam.check_turn(base) or _count_nonzero(_isfinite(up)) == up.size
             else:
                 finite = _count_nonzero(_isfinite(up)) == up.size
             if finite:
@@ -179,6 +179,26 @@ class RadarBeam:
                 return f"config: {why}"
         return invalid_fields(self)
 
+    @staticmethod
+    def check_turn(power: np.ndarray) -> bool:
+        """Whether every value of ``power`` (a turn of spectra whose rows become beams' ``up``) is
+        finite, checked in one pass; a read-only array owning its memory (frozen: its values can no
+        longer change) found finite is remembered (the last :data:`FINITE_TURNS_KEPT`, by weak
+        reference), so that :meth:`invalid_reason` of its rows needs no pass. A reader calls it on
+        the thread that reads the turn, after freezing it."""
+        if power.dtype.kind not in "fc":
+            return True
+        finite = bool(_count_nonzero(_isfinite(power)) == power.size)
+        if _frozen_owner(power):
+            if finite:
+                with _turns_lock:
+                    _finite_turns[id(power)] = weakref.ref(power)
+                    while len(_finite_turns) > FINITE_TURNS_KEPT:
+                        del _finite_turns[next(iter(_finite_turns))]
+            else:
+                _non_finite_turn[0] = power
+        return finite
+
 
 def _frozen_owner(a: object) -> bool:
     """Whether ``a`` is a numpy array that owns its memory and is read-only (frozen)."""
@@ -187,8 +207,13 @@ def _frozen_owner(a: object) -> bool:
 
 _isfinite, _count_nonzero = np.isfinite, np.count_nonzero
 _valid_config: list[RadarConfig | None] = [None]  # the last RadarConfig a beam's check found valid
-# [the last frozen turn of power found finite, the last found holding a non-finite value]
-_finite_turn: list[np.ndarray | None] = [None, None]
+#: frozen turns found finite kept (readers read a few turns ahead of the beams being checked)
+FINITE_TURNS_KEPT = 16
+# id -> weak reference of the last frozen turns found finite (a dead one, or another array under a reused id,
+# never matches: the reference must give the very array), oldest first; written under the lock, read without
+_finite_turns: dict[int, weakref.ref] = {}
+_turns_lock = threading.Lock()
+_non_finite_turn: list[np.ndarray | None] = [None]  # the last frozen turn found holding a non-finite value
 
 
 @message("impala.RadarBeam", version=1)

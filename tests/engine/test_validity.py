@@ -195,6 +195,8 @@ def test_beams_of_a_frozen_turn_are_checked_by_the_turn_and_still_dropped_one_by
         for i in bad:
             p[i, 7 * i] = np.nan if i % 2 else np.inf
         p.flags.writeable = k == 4  # the last turn left writeable: checked beam by beam
+        if k in (0, 1):  # as a reader does on its reading thread: the turn checked (and remembered if finite)
+            assert RadarBeam.check_turn(p) is (k == 0)
         turns.append(p)
     samples = [s for k, p in enumerate(turns) for s in _turn_beams(p, k * 100 * MS)]
     sink = CollectingSink("sink")
@@ -210,3 +212,23 @@ def test_beams_of_a_frozen_turn_are_checked_by_the_turn_and_still_dropped_one_by
             lean = RadarBeam(0.0, 0, i, p[i], np.zeros(0, np.float32), IMPALA)
             assert alone.invalid_reason() == lean.invalid_reason() == (
                 None if np.isfinite(p[i]).all() else "non-finite up")
+
+
+def test_a_remembered_turn_never_vouches_for_another_array():
+    """Turns are remembered by weak reference under their id: once a finite turn is gone, a new turn (whatever
+    its address) is checked itself, and a writeable turn is never remembered."""
+    empty = np.zeros(0, np.float32)
+    for _ in range(50):
+        p = np.ones((4, 600), np.float32)
+        p.flags.writeable = False
+        assert RadarBeam.check_turn(p)
+        del p
+        q = np.ones((4, 600), np.float32)
+        q[2, 5] = np.nan
+        q.flags.writeable = False
+        assert RadarBeam(0.0, 0, 2, q[2], empty, IMPALA).invalid_reason() == "non-finite up"
+        assert RadarBeam(0.0, 0, 1, q[1], empty, IMPALA).invalid_reason() is None
+    w = np.ones((4, 600), np.float32)
+    assert RadarBeam.check_turn(w)
+    w[3, 0] = np.inf  # still writeable: nothing was remembered of it
+    assert RadarBeam(0.0, 0, 3, w[3], empty, IMPALA).invalid_reason() == "non-finite up"

@@ -330,8 +330,8 @@ _Read = tuple["Scan | None", "np.ndarray | None", "BaseException | None"]  # (sc
 
 
 def _read(ds: NavtechDataset, k: int, db_per_count: float) -> _Read:
-    """Scan ``k`` and its linear power, frozen before any of its beams is out (the beams are its
-    rows: a validity check may then test the whole turn once, see ``RadarBeam.invalid_reason``)."""
+    """Scan ``k`` and its linear power, frozen before any of its beams is out and checked finite as a
+    whole (``RadarBeam.check_turn``: the beams are its rows, each then checked without a pass)."""
     try:
         scan = ds.read_scan(k)
         if scan.counts is not None:
@@ -339,6 +339,7 @@ def _read(ds: NavtechDataset, k: int, db_per_count: float) -> _Read:
         else:
             power = counts_to_power(scan.power, db_per_count)
         power.flags.writeable = False
+        impala_msgs.RadarBeam.check_turn(power)  # here, on the reading thread: its beams then need no pass each
         return scan, power, None
     except BaseException as e:  # handed to the consumer, raised there in order
         return None, None, e
