@@ -107,6 +107,12 @@ def test_power_of_counts_is_counts_to_power_bit_for_bit():
             assert np.array_equal(got.view(np.uint32), want.view(np.uint32))
     # and the table against the dB formula computed on its own
     assert np.array_equal(_power_table(0.5), (10.0 ** (np.arange(256) * 0.5 / 10.0)).astype(np.float32))
+    # the other look-ups: a view whose pixels are not contiguous in a row, and more than two dimensions
+    c = rng.integers(0, 256, size=(30, 40), dtype=np.uint8)
+    for view in (c[:, ::2], c.reshape(2, 15, 40), c.T):
+        got = power_of_counts(view, 0.5)
+        want = counts_to_power(view.astype(np.float32) / np.float32(255.0), 0.5)
+        assert got.shape == view.shape and np.array_equal(got.view(np.uint32), want.view(np.uint32))
     with pytest.raises(TypeError, match="uint8"):
         power_of_counts(np.zeros((20, 20), np.float32), 0.5)
 

@@ -311,15 +311,20 @@ def _power_table(db_per_count: float) -> np.ndarray:
 def power_of_counts(counts: np.ndarray, db_per_count: float) -> np.ndarray:
     """:func:`counts_to_power` of the pixels ``counts`` (uint8) / 255, bit for bit, without the float
     passes: ``rint(float64(float32(c) / 255) * 255) == c`` for every c in 0..255 (tested), so each
-    pixel takes its count's table entry (a single gather); up to 256 pixels, :func:`counts_to_power`
-    itself (it computes those per pixel)."""
+    pixel takes its count's table entry (one look-up: OpenCV's for an image, numpy's gather otherwise); up to
+    256 pixels, :func:`counts_to_power` itself (it computes those per pixel)."""
     counts = np.asarray(counts)
     if counts.dtype != np.uint8:
         raise TypeError(f"counts must be uint8 pixels, got {counts.dtype}")
     if counts.size <= 256:
         return counts_to_power(counts.astype(np.float32) / np.float32(255.0), db_per_count)
     db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
-    return _power_table(float(db_per_count)).take(counts)
+    table = _power_table(float(db_per_count))
+    if counts.ndim == 2 and counts.strides[1] == 1:  # rows of pixels: OpenCV's table look-up, 4x numpy's gather
+        import cv2  # here: imported by the plugin's registration already (panoramic), never by this module's users
+
+        return cv2.LUT(counts, table)
+    return table.take(counts)
 
 
 #: Scans read and decoded ahead of the one being written (the worker thread's queue).

@@ -500,7 +500,9 @@ class RadiateDataset(NavtechDataset):
         a = np.arange(n, dtype=np.float64) * (2.0 * np.pi / n)
         a = -a if self.rotation == "cw" else a
         azimuth = msgs.wrap_angle(a + math.radians(self.azimuth_offset_deg))
-        return Scan(path, t_ns, azimuth, None, np.ones(n, dtype=bool), counts=np.ascontiguousarray(img.T))
+        import cv2  # here: imported by the plugin's registration already (panoramic), never by this module's users
+
+        return Scan(path, t_ns, azimuth, None, np.ones(n, dtype=bool), counts=cv2.transpose(img))  # img.T, C order
 
     def duration_hint_ns(self) -> int | None:
         return int(self.turn_t_ns[-1] - self.turn_t_ns[0]) + self.period_ns
