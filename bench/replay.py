@@ -10,8 +10,9 @@
   (heap, ports, process calls: the rest).
 - import: ``impala-flow import radiate FOLDER -o X.mcap`` in a subprocess; scans/s on CPU
   time (the child's user + system) and on wall time (start-up included; PNGs are read on a
-  read-ahead thread, chunks compressed and written on the writer's thread), its peak RSS, and
-  whether the file is byte-identical to a second import.
+  read-ahead thread, chunks compressed and written on the writer's thread), the CPU of each of
+  those threads and of the main one, its peak RSS, and whether the file is byte-identical to a
+  second import.
 - import split (:func:`import_split`, in this process, ms of CPU per scan on the first scans):
   the read-ahead thread (PNG inflation, counts to power), on the main thread the beams and truth
   made by the reader, the writer's encode (native payload), mirror (the JSON view) and chunk
@@ -173,33 +174,57 @@ def import_split(folder: str, out_dir: str, scans: int = 100) -> dict[str, float
             "import_writer_thread_ms_per_scan": round(thread_s * per, 2)}
 
 
-def _import_once(folder: str, out: Path, tree: Path) -> tuple[float, float]:
+#: runs ``impala-flow ARGS`` in this interpreter and prints, last on stderr, the CPU seconds of each thread
+_THREAD_CPU = """
+import json, sys, threading, time
+cpu = {}
+_run = threading.Thread.run
+def run(self):
+    try:
+        _run(self)
+    finally:
+        cpu[self.name] = cpu.get(self.name, 0.0) + time.thread_time()
+threading.Thread.run = run
+from impala_flow.cli import main
+code = main(sys.argv[1:])
+cpu["main"] = time.thread_time()
+print(json.dumps({"thread_cpu_s": cpu}), file=sys.stderr)
+sys.exit(code)
+"""
+_THREAD_KEYS = {"main": "main", "impala-read-ahead": "read", "impala-mcap-writer": "writer"}
+
+
+def _import_once(folder: str, out: Path, tree: Path) -> tuple[float, float, dict[str, float]]:
     env = dict(os.environ, OMP_NUM_THREADS="1",
                PYTHONPATH=os.pathsep.join([str(tree), str(tree / "plugins"), os.environ.get("PYTHONPATH", "")]))
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "impala_flow", "import", "radiate", folder, "-o", str(out), "--overwrite",
-                    "--no-progress"], check=True, env=env, capture_output=True)
+    run = subprocess.run([sys.executable, "-c", _THREAD_CPU, "import", "radiate", folder, "-o", str(out),
+                          "--overwrite", "--no-progress"], check=True, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, wall
+    threads = json.loads(run.stderr.strip().splitlines()[-1])["thread_cpu_s"]
+    return cpu, wall, {_THREAD_KEYS.get(k, k): v for k, v in threads.items()}
 
 
 def bench_import_radiate(folder: str, out_dir: str, tree: str | None = None) -> dict[str, Any]:
-    """``impala-flow import radiate folder`` twice (CPU and wall scans/s of the faster run, and
-    whether both files are byte-identical). ``tree``: the checkout to run (default: this one)."""
+    """``impala-flow import radiate folder`` twice (CPU and wall scans/s of the faster run, each thread's CPU
+    in it: main, read-ahead, writer; and whether both files are byte-identical). ``tree``: the checkout to run
+    (default: this one)."""
     root = Path(tree) if tree else ROOT
     scans = len(list((Path(folder) / "Navtech_Polar").glob("*.png")))
     outs = [Path(out_dir) / f"radiate-import-{i}.mcap" for i in range(2)]
     Path(out_dir).mkdir(parents=True, exist_ok=True)
     runs = [_import_once(folder, o, root) for o in outs]
     cpu = min(r[0] for r in runs)
-    wall = min(r[1] for r in runs)
+    fastest = min(runs, key=lambda r: r[1])
+    wall = fastest[1]
     same = outs[0].read_bytes() == outs[1].read_bytes()
     return {"import_radiate_scans": scans, "import_radiate_scans_per_s": round(scans / wall, 1),
             "import_radiate_cpu_scans_per_s": round(scans / cpu, 1), "import_radiate_cpu_s": round(cpu, 2),
             "import_radiate_wall_s": round(wall, 2), "import_radiate_repeatable": same,
+            **{f"import_{k}_thread_cpu_s": round(v, 2) for k, v in sorted(fastest[2].items())},
             "import_peak_rss_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1)}
 
 
@@ -222,6 +247,8 @@ def main(argv: list[str] | None = None) -> int:
               f"wall, {res['import_radiate_cpu_scans_per_s']} scans/s of CPU ({res['import_radiate_cpu_s']} s); "
               f"two imports byte-identical: {res['import_radiate_repeatable']} (target >= 50 scans/s); "
               f"peak RSS {res['import_peak_rss_mb']} MB")
+        print("import radiate, CPU s by thread (the faster run): " + ", ".join(
+            f"{k[len('import_'):-len('_thread_cpu_s')]} {v}" for k, v in res.items() if k.endswith("_thread_cpu_s")))
         res.update(import_split(a.radiate, a.out))
         print(f"import split, CPU ms per scan (first {res['import_split_scans']} scans): read-ahead thread "
               f"{res['import_read_thread_ms_per_scan']}; main thread: reader's beams {res['import_source_ms_per_scan']}"

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from dataclasses import field
 
 import numpy as np
@@ -146,23 +148,72 @@ class RadarBeam:
         counted (``count_nonzero`` of ``isfinite``: half the cost of ``isfinite().all()``), and the
         configuration checked once per object. Every beam of a sensor carries the same
         RadarConfig object (a replayed recording's too: its decoder shares equal ones), which
-        is never changed once its beams are out, so the last one found valid is remembered."""
+        is never changed once its beams are out, so the last one found valid is remembered.
+
+        A spectrum that is a row of a turn :meth:`check_turn` found finite (a dataset reader's
+        frozen turn of power) needs no pass of its own: a whole turn is checked once, where it
+        is read, and its beams skip 400 passes and 400 releases of the GIL (each of which can
+        cost the calling thread a switch interval when another thread wants the GIL). A frozen
+        turn not checked yet is checked here, once; a turn holding a non-finite value has its
+        beams checked one by one."""
         up, down = self.up, self.down
-        if (self.azimuth_rad * 0.0 == 0.0 and (up.dtype.kind not in "fc" or _count_nonzero(_isfinite(up)) == up.size)
-                and (down.size == 0 or down.dtype.kind not in "fc" or _count_nonzero(_isfinite(down)) == down.size)):
-            config = self.config
-            if config is _valid_config[0]:
-                return None
-            why = config.invalid_reason()
-            if why is None:
-                _valid_config[0] = config
-                return None
-            return f"config: {why}"
+        if self.azimuth_rad * 0.0 == 0.0 and (down.size == 0 or down.dtype.kind not in "fc"
+                                               or _count_nonzero(_isfinite(down)) == down.size):
+            base = up.base
+            if base is not None and (ref := _finite_turns.get(id(base))) is not None and ref() is base:
+                finite = True
+            elif up.dtype.kind not in "fc":
+                finite = True
+            elif base is not None and base is not _non_finite_turn[0] and _frozen_owner(base):
+                finite = RadarBeam.check_turn(base) or _count_nonzero(_isfinite(up)) == up.size
+            else:
+                finite = _count_nonzero(_isfinite(up)) == up.size
+            if finite:
+                config = self.config
+                if config is _valid_config[0]:
+                    return None
+                why = config.invalid_reason()
+                if why is None:
+                    _valid_config[0] = config
+                    return None
+                return f"config: {why}"
         return invalid_fields(self)
+
+    @staticmethod
+    def check_turn(power: np.ndarray) -> bool:
+        """Whether every value of ``power`` (a turn of spectra whose rows become beams' ``up``) is
+        finite, checked in one pass; a read-only array owning its memory (frozen: its values can no
+        longer change) found finite is remembered (the last :data:`FINITE_TURNS_KEPT`, by weak
+        reference), so that :meth:`invalid_reason` of its rows needs no pass. A reader calls it on
+        the thread that reads the turn, after freezing it."""
+        if power.dtype.kind not in "fc":
+            return True
+        finite = bool(_count_nonzero(_isfinite(power)) == power.size)
+        if _frozen_owner(power):
+            if finite:
+                with _turns_lock:
+                    _finite_turns[id(power)] = weakref.ref(power)
+                    while len(_finite_turns) > FINITE_TURNS_KEPT:
+                        del _finite_turns[next(iter(_finite_turns))]
+            else:
+                _non_finite_turn[0] = power
+        return finite
+
+
+def _frozen_owner(a: object) -> bool:
+    """Whether ``a`` is a numpy array that owns its memory and is read-only (frozen)."""
+    return type(a) is np.ndarray and a.flags.owndata and not a.flags.writeable
 
 
 _isfinite, _count_nonzero = np.isfinite, np.count_nonzero
 _valid_config: list[RadarConfig | None] = [None]  # the last RadarConfig a beam's check found valid
+#: frozen turns found finite kept (readers read a few turns ahead of the beams being checked)
+FINITE_TURNS_KEPT = 16
+# id -> weak reference of the last frozen turns found finite (a dead one, or another array under a reused id,
+# never matches: the reference must give the very array), oldest first; written under the lock, read without
+_finite_turns: dict[int, weakref.ref] = {}
+_turns_lock = threading.Lock()
+_non_finite_turn: list[np.ndarray | None] = [None]  # the last frozen turn found holding a non-finite value
 
 
 @message("impala.RadarBeam", version=1)

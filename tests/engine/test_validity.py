@@ -178,3 +178,57 @@ def test_a_fanned_out_invalid_sample_is_counted_at_every_input_it_reaches():
     summary = run_components(ScriptedSource("src", samples), a, b, connections=["src.p -> a.x", "src.p -> b.x"])
     assert summary.invalid() == {"a.x": {"non-finite x_m": 1}, "b.x": {"non-finite x_m": 1}}
     assert len(a.values()) == len(b.values()) == 1
+
+
+def _turn_beams(power, t0=0):
+    empty = np.zeros(0, np.float32)
+    return [(t0 + i * MS, "p", RadarBeam(0.01 * i, 0, i, power[i], empty, IMPALA)) for i in range(len(power))]
+
+
+def test_beams_of_a_frozen_turn_are_checked_by_the_turn_and_still_dropped_one_by_one():
+    """A reader's frozen turn (the beams are its rows) is tested once for finiteness; a turn holding a NaN or an
+    inf drops exactly its bad beams, wherever it comes among finite turns, frozen or not."""
+    rng = np.random.default_rng(4)
+    turns = []
+    for k, bad in enumerate([(), (3,), (), (0, 5), ()]):
+        p = rng.random((8, 600)).astype(np.float32)
+        for i in bad:
+            p[i, 7 * i] = np.nan if i % 2 else np.inf
+        p.flags.writeable = k == 4  # the last turn left writeable: checked beam by beam
+        if k in (0, 1):  # as a reader does on its reading thread: the turn checked (and remembered if finite)
+            assert RadarBeam.check_turn(p) is (k == 0)
+        turns.append(p)
+    samples = [s for k, p in enumerate(turns) for s in _turn_beams(p, k * 100 * MS)]
+    sink = CollectingSink("sink")
+    summary = run_components(ScriptedSource("src", samples), sink, connections=["src.p -> sink.x"])
+    kept = [(b.turn, b.index) for b in sink.values()]
+    assert len(kept) == 40 - 3
+    assert [k for k, p in enumerate(turns) for i in range(8) if not np.isfinite(p[i]).all()] == [1, 3, 3]
+    assert summary.inputs["sink.x"]["invalid_reasons"] == {"non-finite up": 3}
+    # the same beams one by one (each a copy of its row: no turn to lean on) give the same verdicts
+    for p in turns:
+        for i in range(8):
+            alone = RadarBeam(0.0, 0, i, p[i].copy(), np.zeros(0, np.float32), IMPALA)
+            lean = RadarBeam(0.0, 0, i, p[i], np.zeros(0, np.float32), IMPALA)
+            assert alone.invalid_reason() == lean.invalid_reason() == (
+                None if np.isfinite(p[i]).all() else "non-finite up")
+
+
+def test_a_remembered_turn_never_vouches_for_another_array():
+    """Turns are remembered by weak reference under their id: once a finite turn is gone, a new turn (whatever
+    its address) is checked itself, and a writeable turn is never remembered."""
+    empty = np.zeros(0, np.float32)
+    for _ in range(50):
+        p = np.ones((4, 600), np.float32)
+        p.flags.writeable = False
+        assert RadarBeam.check_turn(p)
+        del p
+        q = np.ones((4, 600), np.float32)
+        q[2, 5] = np.nan
+        q.flags.writeable = False
+        assert RadarBeam(0.0, 0, 2, q[2], empty, IMPALA).invalid_reason() == "non-finite up"
+        assert RadarBeam(0.0, 0, 1, q[1], empty, IMPALA).invalid_reason() is None
+    w = np.ones((4, 600), np.float32)
+    assert RadarBeam.check_turn(w)
+    w[3, 0] = np.inf  # still writeable: nothing was remembered of it
+    assert RadarBeam(0.0, 0, 3, w[3], empty, IMPALA).invalid_reason() == "non-finite up"

@@ -20,7 +20,8 @@ import impala_msgs
 from impala_flow import msgs
 
 __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
-           "read_csv_columns", "enu_to_odom", "counts_to_power", "gap_summary", "time_steps_back", "t_text",
+           "read_csv_columns", "enu_to_odom", "counts_to_power", "power_of_counts", "gap_summary", "time_steps_back",
+           "t_text",
            "check_option", "read_text", "unix_times_ns", "check_span", "refuse_steps_back", "check_turn_period",
            "check_speed", "MAX_MISSION_SPAN_S", "MAX_STEP_BACK_S", "MAX_SPEED_MPS", "NAVTECH_TURN_S",
            "UNIX_S_MAX", "DB_PER_COUNT_MAX", "RANGE_RESOLUTION_MAX_M", "RANGE_OFFSET_MAX_BINS"]
@@ -171,20 +172,31 @@ def navtech_config(name: str, n_bins: int, range_per_bin_m: float, *, range_offs
                                               rotation_hz)
 
 
-@dataclass(eq=False)
 class Scan:
     """One antenna turn in acquisition order: per-row ``t_ns`` (int64), ``azimuth_rad`` (project
     convention: CCW, 0 = forward, wrapped), ``power`` (float32 rows x bins, value / 255),
     ``keep`` (rows emitted as beams; the others are dropped for ``drop_reason``) and ``chirp``
-    (per row, ``RadarBeam.chirp``: +1 up, -1 down; None when the format does not tell)."""
+    (per row, ``RadarBeam.chirp``: +1 up, -1 down; None when the format does not tell).
 
-    path: Path
-    t_ns: np.ndarray
-    azimuth_rad: np.ndarray
-    power: np.ndarray
-    keep: np.ndarray
-    drop_reason: str = ""
-    chirp: np.ndarray | None = None
+    A reader may give the 8-bit pixels ``counts`` (uint8 rows x bins) instead of ``power``:
+    ``power`` is then ``counts / 255`` in float32, made when first read, and the import turns the
+    counts into linear power by table (:func:`power_of_counts`), with no float pass."""
+
+    __slots__ = ("path", "t_ns", "azimuth_rad", "_power", "keep", "drop_reason", "chirp", "counts")
+
+    def __init__(self, path: Path, t_ns: np.ndarray, azimuth_rad: np.ndarray, power: np.ndarray | None,
+                 keep: np.ndarray, drop_reason: str = "", chirp: np.ndarray | None = None,
+                 counts: np.ndarray | None = None) -> None:
+        if power is None and counts is None:
+            raise ValueError("a Scan needs its power or its counts")
+        self.path, self.t_ns, self.azimuth_rad, self._power = path, t_ns, azimuth_rad, power
+        self.keep, self.drop_reason, self.chirp, self.counts = keep, drop_reason, chirp, counts
+
+    @property
+    def power(self) -> np.ndarray:
+        if self._power is None:
+            self._power = self.counts.astype(np.float32) / np.float32(255.0)
+        return self._power
 
 
 @dataclass
@@ -296,6 +308,25 @@ def _power_table(db_per_count: float) -> np.ndarray:
     return table
 
 
+def power_of_counts(counts: np.ndarray, db_per_count: float) -> np.ndarray:
+    """:func:`counts_to_power` of the pixels ``counts`` (uint8) / 255, bit for bit, without the float
+    passes: ``rint(float64(float32(c) / 255) * 255) == c`` for every c in 0..255 (tested), so each
+    pixel takes its count's table entry (one look-up: OpenCV's for an image, numpy's gather otherwise); up to
+    256 pixels, :func:`counts_to_power` itself (it computes those per pixel)."""
+    counts = np.asarray(counts)
+    if counts.dtype != np.uint8:
+        raise TypeError(f"counts must be uint8 pixels, got {counts.dtype}")
+    if counts.size <= 256:
+        return counts_to_power(counts.astype(np.float32) / np.float32(255.0), db_per_count)
+    db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
+    table = _power_table(float(db_per_count))
+    if counts.ndim == 2 and counts.strides[1] == 1:  # rows of pixels: OpenCV's table look-up, 4x numpy's gather
+        import cv2  # here: imported by the plugin's registration already (panoramic), never by this module's users
+
+        return cv2.LUT(counts, table)
+    return table.take(counts)
+
+
 #: Scans read and decoded ahead of the one being written (the worker thread's queue).
 READ_AHEAD = 4
 
@@ -304,9 +335,17 @@ _Read = tuple["Scan | None", "np.ndarray | None", "BaseException | None"]  # (sc
 
 
 def _read(ds: NavtechDataset, k: int, db_per_count: float) -> _Read:
+    """Scan ``k`` and its linear power, frozen before any of its beams is out and checked finite as a
+    whole (``RadarBeam.check_turn``: the beams are its rows, each then checked without a pass)."""
     try:
         scan = ds.read_scan(k)
-        return scan, counts_to_power(scan.power, db_per_count), None
+        if scan.counts is not None:
+            power = power_of_counts(scan.counts, db_per_count)
+        else:
+            power = counts_to_power(scan.power, db_per_count)
+        power.flags.writeable = False
+        impala_msgs.RadarBeam.check_turn(power)  # here, on the reading thread: its beams then need no pass each
+        return scan, power, None
     except BaseException as e:  # handed to the consumer, raised there in order
         return None, None, e
 
@@ -374,7 +413,8 @@ def _beams(ds: NavtechDataset, report: ImportReport, skip_bad: bool, db_per_coun
             report.dropped_rows[_BACK] += int(back.sum())
             keep = scan.keep.copy()
             keep[rows[back]] = False
-            scan = Scan(scan.path, scan.t_ns, scan.azimuth_rad, scan.power, keep, scan.drop_reason)
+            scan = Scan(scan.path, scan.t_ns, scan.azimuth_rad, scan._power, keep, scan.drop_reason, scan.chirp,
+                        scan.counts)
         n_drop = int(scan.keep.size - np.count_nonzero(scan.keep)) - int(back.sum())
         if n_drop:
             report.dropped_rows[scan.drop_reason or "dropped"] += n_drop

@@ -142,8 +142,8 @@ class NavtechPngDataset(NavtechDataset):
         s = read_navtech_png(path, shape=self.shape)
         check_rows_against_name(path, s.timestamps_ns)
         keep = s.valid if self.flag_is_valid else np.ones(s.valid.shape, dtype=bool)
-        return Scan(path, s.timestamps_ns, ccw_azimuth(s.azimuth_rad, self.azimuth_offset_deg), s.power, keep,
-                    "Oxford valid flag (column 10) != 255", self.chirp_of(s.flag))
+        return Scan(path, s.timestamps_ns, ccw_azimuth(s.azimuth_rad, self.azimuth_offset_deg), None, keep,
+                    "Oxford valid flag (column 10) != 255", self.chirp_of(s.flag), counts=s.counts)
 
     def duration_hint_ns(self) -> int | None:
         return (self.scan_stamps_us[-1] - self.scan_stamps_us[0]) * 1000 + int(1e9 / self.config.rotation_hz)

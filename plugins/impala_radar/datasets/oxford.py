@@ -30,10 +30,10 @@ from .common import (
     MAX_SPEED_MPS,
     DatasetError,
     ImportReport,
-    counts_to_power,
     iter_mission,
     navtech_config,
     numbers,
+    power_of_counts,
     read_csv_columns,
     refuse_steps_back,
     time_steps_back,
@@ -185,7 +185,7 @@ def scan_to_beams(scan: NavtechScan, turn: int, config: impala_msgs.RadarConfig 
     ``wrap(-a + radians(azimuth_offset_deg))``."""
     empty = np.zeros(0, dtype=np.float32)
     azimuth = ccw_azimuth(scan.azimuth_rad, azimuth_offset_deg)
-    power = counts_to_power(scan.power, db_per_count)
+    power = power_of_counts(scan.counts, db_per_count)
     return [(int(scan.timestamps_ns[i]),
              impala_msgs.RadarBeam(float(azimuth[i]), int(turn), i, power[i], empty, config))
             for i in np.flatnonzero(scan.valid).tolist()]

@@ -110,7 +110,7 @@ from .common import (
     t_text,
     time_steps_back,
 )
-from .navtech_png import check_grey8, decode_grey8, png_header, reference_scan
+from .navtech_png import decode_grey8, reference_scan
 
 __all__ = ["RADIATE_RANGE_RESOLUTION_M", "RADIATE_AZIMUTH_OFFSET_DEG", "RADIATE_GPS_OFFSET_S", "RadiateDataset",
            "FrameIndex", "read_frame_times", "read_gps_imu", "geodetic_to_en", "turn_clock", "course_over_ground",
@@ -493,20 +493,16 @@ class RadiateDataset(NavtechDataset):
         path = self.scan_paths[k]
         if not path.is_file():
             raise DatasetError(f"{path}: missing (listed in Navtech_Polar.txt)")
-        rows, cols, mode = png_header(path)
-        check_grey8(path, mode)
-        if (rows, cols) != self.shape:
-            raise DatasetError(f"{path}: {rows} rows x {cols} columns, expected {self.shape[0]} x {self.shape[1]} "
-                               f"(range bins x azimuths) like the first scan")
-        img = decode_grey8(path)
-        n = cols
+        img = decode_grey8(path, self.shape, "range bins x azimuths")  # one read; header, shape checked first
+        n = img.shape[1]
         span = min(self.period_ns, int(self.next_t_ns[k] - self.turn_t_ns[k]))  # never over a gap
         t_ns = self.turn_t_ns[k] + (np.arange(n, dtype=np.int64) * span) // n
         a = np.arange(n, dtype=np.float64) * (2.0 * np.pi / n)
         a = -a if self.rotation == "cw" else a
         azimuth = msgs.wrap_angle(a + math.radians(self.azimuth_offset_deg))
-        power = np.ascontiguousarray(img.T).astype(np.float32) / np.float32(255.0)
-        return Scan(path, t_ns, azimuth, power, np.ones(n, dtype=bool))
+        import cv2  # here: imported by the plugin's registration already (panoramic), never by this module's users
+
+        return Scan(path, t_ns, azimuth, None, np.ones(n, dtype=bool), counts=cv2.transpose(img))  # img.T, C order
 
     def duration_hint_ns(self) -> int | None:
         return int(self.turn_t_ns[-1] - self.turn_t_ns[0]) + self.period_ns

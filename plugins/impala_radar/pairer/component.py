@@ -61,7 +61,7 @@ class FuzzyPairer(Component):
     rules = Param(list, default=[], doc="fuzzy rules replacing fuzzy.DEFAULT_RULES when not empty")
 
     def start(self) -> None:
-        for m in ("scipy.ndimage", "scipy.optimize"):  # before the first turn (peaks imports them where used)
+        for m in ("scipy.fft", "scipy.ndimage", "scipy.optimize"):  # before the first turn (imported where used)
             importlib.import_module(m)
         self._turn = TurnBuffer()
         self.turns = 0
