@@ -157,11 +157,11 @@ def test_coarse_search_and_the_translation_returned():
     assert tr.rows is not None
     theta = math.radians(4.0)
     hann = core._hann(a.image.shape)
-    fa = core._rfft2(a.image * hann, tr.cols)[tr.rows]
+    fa = core._rfft2(a.image * hann, tr.cols, cv=False)[tr.rows]  # the older image's: its preparation's (scipy.fft)
     fb = core._rfft2(core._derotate(b.image, theta) * hann, tr.cols)[tr.rows]
     want = core._coarse_peak(fa, fb, tr.weight, a.image.shape[0])
     snr, t, x, y, h = tr.final(theta)
-    np.testing.assert_array_equal((-x / P.cell_m, -y / P.cell_m), (want[1], want[0]))
+    np.testing.assert_array_equal((x, y), (-want[1] * P.cell_m, -want[0] * P.cell_m))  # cells -> m as the code
     assert snr == want[2]
     coarse = tr.translation(theta)  # the search: its SNR only (the peak of the halved images' correlation)
     assert coarse[0] == pytest.approx(snr, rel=0.25)
