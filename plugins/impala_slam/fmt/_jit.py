@@ -1,14 +1,14 @@
 """The FMT's compiled loops (numba, ``cache=True``; imported at their first call, never with the
 plugin): the 2 x 2 mean of a grid, the same bits as the numpy formulation it replaces
 (``((x00 + x01) + (x10 + x11)) / 4`` in float32; tests/slam/test_fmt_core.py compares them); a spectrum
-packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout)."""
+packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout) and a spectrum's sum of squares (Parseval)."""
 
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-__all__ = ["mean2x2", "pack_ccs"]
+__all__ = ["mean2x2", "pack_ccs", "sum_sq"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -59,4 +59,19 @@ def pack_ccs(spec, out):  # pragma: no cover - compiled
         else:
             for u in range(rows):
                 out[u, col] = 0
+    return s
+
+
+@numba.njit(cache=True, nogil=True)
+def sum_sq(spec, n):  # pragma: no cover - compiled
+    """The sum of |X|^2 over the whole rows x n spectrum of a real image from its first columns in rfft2's
+    layout (``spec``; the columns beyond are 0): column 0 once, and column n / 2 (n even) once, the others
+    twice (Hermitian); float64 (:func:`pack_ccs`'s sum without the packing)."""
+    rows, k = spec.shape
+    s = 0.0
+    for i in range(rows):
+        for j in range(k):
+            z = spec[i, j]
+            a = float(z.real) * float(z.real) + float(z.imag) * float(z.imag)
+            s += a if j == 0 or 2 * j == n else 2.0 * a
     return s

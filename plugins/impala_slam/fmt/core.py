@@ -272,10 +272,11 @@ def warm_up() -> None:
     component's start(): the plugin's import, which every command pays, never imports scipy.fft)."""
     import scipy.fft  # noqa: F401 - the rotation's 1-D transforms
 
-    from ._jit import mean2x2, pack_ccs
+    from ._jit import mean2x2, pack_ccs, sum_sq
 
     mean2x2(np.zeros((2, 2), np.float32), np.empty((1, 1), np.float32))
     pack_ccs(np.zeros((4, 3), np.complex64), np.empty((4, 4), np.float32))
+    sum_sq(np.zeros((4, 3), np.complex64), 4)
 
 
 def _quantile(vals: np.ndarray, q: float) -> float:
@@ -480,18 +481,37 @@ def fft_workers(n: int) -> Iterator[None]:
         _local.workers = old
 
 
+def _batched() -> bool:
+    """Whether this thread computes a task of a batch of translations (:meth:`_Translator.translations`,
+    with or without a pool): its 2-D transforms are then ``cv2.dft``'s, one thread each, faster than
+    scipy.fft's on one; elsewhere (a transform no other runs beside) scipy.fft's, which shares one between
+    its ``workers`` (the same numbers with any number). Set by where the transform is, never by the number
+    of threads: the same bits with 1 thread or 2."""
+    return getattr(_local, "batched", False)
+
+
+@contextmanager
+def _in_batch() -> Iterator[None]:
+    old = _batched()
+    _local.batched = True
+    try:
+        yield
+    finally:
+        _local.batched = old
+
+
 def _even(shape: tuple[int, ...]) -> bool:
     """An image OpenCV's packed spectrum (CCS) is laid out for here: 2-D, both sides even."""
     return len(shape) == 2 and shape[0] % 2 == 0 and shape[1] % 2 == 0 and min(shape) >= 4
 
 
-def _rfft2(img: np.ndarray, cols: int, cv: bool = True) -> np.ndarray:
+def _rfft2(img: np.ndarray, cols: int, cv: bool | None = None) -> np.ndarray:
     """``scipy.fft.rfft2(img)``'s first ``cols`` columns, to float rounding: for a float32 image of even sides,
     ``cv2.dft``'s packed spectrum (CCS) unpacked to rfft2's layout (1.3-2.2 x faster than scipy.fft's on one
     thread at 256-512 cells, the unpacking included; the same sums to float32 rounding, 1e-7 of the largest
-    coefficient); otherwise (or ``cv`` False) scipy.fft's: the real transform of the rows then the transform of
-    the kept columns."""
-    if cv and img.dtype == np.float32 and _even(img.shape):
+    coefficient), in a batch's task (``cv`` None: :func:`_batched`) or when ``cv``; otherwise scipy.fft's on
+    :func:`_workers`' threads: the real transform of the rows then the transform of the kept columns."""
+    if (_batched() if cv is None else cv) and img.dtype == np.float32 and _even(img.shape):
         return _unpack_ccs(cv2.dft(img), cols)
     import scipy.fft
 
@@ -525,9 +545,9 @@ def _unpack_ccs(ccs: np.ndarray, cols: int) -> np.ndarray:
 def _irfft2(spec: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, float]:
     """``scipy.fft.irfft2(spec, s=shape)`` (the columns of ``spec`` beyond its own are 0), to float rounding,
     and the sum of |X|^2 over the whole (Hermitian) spectrum: Parseval, the surface's sum of squares times its
-    size. For complex64 and even sides, ``cv2.dft``'s real inverse of the packed spectrum (CCS); otherwise
-    scipy.fft's, the inverse of the columns then the real inverse of the rows."""
-    if spec.dtype == np.complex64 and _even(shape) and spec.shape[1] <= shape[1] // 2 + 1:
+    size. In a batch's task (:func:`_batched`), for complex64 and even sides, ``cv2.dft``'s real inverse of the
+    packed spectrum (CCS); otherwise scipy.fft's, the inverse of the columns then the real inverse of the rows."""
+    if _batched() and spec.dtype == np.complex64 and _even(shape) and spec.shape[1] <= shape[1] // 2 + 1:
         from ._jit import pack_ccs
 
         ccs = np.empty(shape, np.float32)
@@ -535,13 +555,10 @@ def _irfft2(spec: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, float
         return cv2.dft(ccs, flags=cv2.DFT_INVERSE | cv2.DFT_REAL_OUTPUT | cv2.DFT_SCALE), s2
     import scipy.fft
 
+    from ._jit import sum_sq
+
     w = _workers()
-    a2 = np.abs(spec.astype(np.complex128)) ** 2
-    mult = np.full(spec.shape[1], 2.0)
-    mult[0] = 1.0
-    if shape[1] % 2 == 0 and spec.shape[1] == shape[1] // 2 + 1:
-        mult[-1] = 1.0
-    s2 = float(a2.sum(axis=0) @ mult)
+    s2 = sum_sq(np.ascontiguousarray(spec), shape[1])
     if spec.shape[1] >= shape[1] // 2 + 1:
         return scipy.fft.irfft2(spec, s=shape, workers=w), s2
     # irfft2 = the inverse transform of the columns, then the real inverse of the rows, scaled once
@@ -832,11 +849,12 @@ class _Translator:
         """:meth:`translation` of each ``(theta, fb)`` of the batch, in order (on the pool's threads:
         each is computed from this pair's images alone, so in any order, the same numbers)."""
         if self.pool is None:
-            return [self.translation(*args) for args in batch]
+            with _in_batch():
+                return [self.translation(*args) for args in batch]
         return self.pool.map(self._one_thread, batch)
 
     def _one_thread(self, *args: object) -> tuple:
-        with fft_workers(1):  # the batch's tasks share the threads: one each
+        with fft_workers(1), _in_batch():  # the batch's tasks share the threads: one each
             return self.translation(*args)  # type: ignore[arg-type]
 
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
@@ -916,12 +934,12 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
     m = n // 2
     c, s2 = _irfft2(cross, (m, m))  # = 4 x the n x n surface every other cell
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
-    freqs, col_f, col_w = _window_freqs(n, cross.shape[1])
+    row_k, col_k, col_w, roots = _window_freqs(n, cross.shape[1])
     spec = cross.astype(np.complex128)
 
     def window(y: int, x: int, r: int) -> np.ndarray:  # the n x n surface on the cells (y, x) +- r
-        off = np.arange(-r, r + 1)
-        return (np.exp(np.outer(off + y, freqs)) @ spec @ (np.exp(np.outer(col_f, off + x)) * col_w)).real
+        off = np.arange(-r, r + 1)  # exp(2 pi i k y / n) from the table of the n-th roots of unity
+        return (roots[np.outer(off + y, row_k) % n] @ spec @ (roots[np.outer(col_k, off + x) % n] * col_w)).real
 
     y, x = 2 * int(iy), 2 * int(ix)
     w = window(y, x, 4)
@@ -952,16 +970,18 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
     return float(sy), float(sx), snr, h
 
 
-_freqs_of: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+_freqs_of: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
 
 
-def _window_freqs(n: int, cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_coarse_peak`'s kept rows' and columns' frequencies (radians per cell, times i) and
-    the columns' weights (Hermitian half: twice each column but DC; 1 / n^2 of the inverse DFT)."""
+def _window_freqs(n: int, cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_coarse_peak`'s kept rows' and columns' frequencies (cycles per n cells), the columns'
+    weights (Hermitian half: twice each column but DC; 1 / n^2 of the inverse DFT) and the n-th roots of
+    unity exp(2 pi i j / n) (a table: no complex exponential per coefficient and window)."""
     if (n, cols) not in _freqs_of:
         m = n // 2
-        _freqs_of[n, cols] = (np.r_[0:m // 2, -(m // 2):0] * (2j * np.pi / n), np.arange(cols) * (2j * np.pi / n),
-                              (np.where(np.arange(cols) == 0, 1.0, 2.0) / (n * n))[:, None])
+        _freqs_of[n, cols] = (np.r_[0:m // 2, -(m // 2):0], np.arange(cols),
+                              (np.where(np.arange(cols) == 0, 1.0, 2.0) / (n * n))[:, None],
+                              np.exp(np.arange(n) * (2j * np.pi / n)))
     return _freqs_of[n, cols]
 
 
@@ -982,7 +1002,7 @@ def _refine_rotation(tr: _Translator, best: tuple, step: float) -> tuple[tuple, 
 
     for _ in range(3):
         todo = [t for t in (theta - step, theta + step) if t not in done]
-        if len(todo) == 2 and tr.pool is not None:  # both neighbours at once, on the pool's threads
+        if len(todo) == 2:  # both neighbours at once, a batch (on the pool's threads if any)
             done.update(zip(todo, tr.translations([(t,) for t in todo]), strict=True))
         lo = at(theta - step)
         hi = at(theta + step)
