@@ -359,7 +359,17 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
         # image is the older one of a pair, the translation's spectrum on the full grid (_spectrum)
         rf = _rfft2(windowed, max(cols, hi + 4), cv=False)  # scipy.fft's: the rotation's spectra as before, bit for bit
-        return FmtImage(out, polar_spectrum(out, p, rf), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
+        fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
+        if _coarse_rows(n, lp, cols) is None:
+            fi.polar = polar_spectrum(out, p, rf)
+            return fi
+        # on the coarse grid, the spectrum this image will have as the older one of the next pair, beside its
+        # polar spectrum (the same numbers as computed then: scipy.fft's, here rather than beside the rotation)
+        fi.polar = pool.map(_call, [(polar_spectrum, out, p, rf), (_spectrum, fi, cols, True)])[0] if pool else \
+            polar_spectrum(out, p, rf)
+        if not pool:
+            _spectrum(fi, cols, True)
+        return fi
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
 
 
