@@ -138,10 +138,10 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
     two rotation candidates, and the final one on the full grid when the refinement is off or ends
     without a maximum); refine (the rotation refinement's translations, the final one included); of
     which peak (the correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse
-    one), snr (the full grid's and the rotation's SNR) and fft (every FFT)."""
+    one), snr (the full grid's and the rotation's SNR) and fft (every FFT: scipy.fft's and cv2.dft's)."""
     ct: dict[str, float] = {}
     for (path, _, fn), (_, _, _, cum, callers) in stats.stats.items():  # type: ignore[attr-defined]
-        if path == "~" and "pypocketfft" in fn:
+        if path == "~" and ("pypocketfft" in fn or fn == "<dft>"):  # scipy.fft's and cv2.dft
             ct["fft"] = ct.get("fft", 0.0) + cum
         if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
             continue

@@ -158,7 +158,15 @@ def test_coarse_search_and_the_translation_returned():
     theta = math.radians(4.0)
     hann = core._hann(a.image.shape)
     fa = core._rfft2(a.image * hann, tr.cols, cv=False)[tr.rows]  # the older image's: its preparation's (scipy.fft)
-    fb = core._rfft2(core._derotate(b.image, theta) * hann, tr.cols)[tr.rows]
+    fb = tr.spectrum(theta, fine=True)
+    # b turned by theta in two halves of rows (OpenCV's warp of each from its first row), windowed: its spectrum
+    n = b.image.shape[0]
+    c, s = math.cos(theta), math.sin(theta)
+    halves = [cv2.warpAffine(b.image, np.array([[c, s, n // 2 * (1 - c - s) + s * r0],
+                                                [-s, c, n // 2 * (1 + s - c) + c * r0]]), (n, n // 2),
+                             flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP) for r0 in (0, n // 2)]
+    plain = scipy.fft.rfft2(np.vstack(halves) * hann)[:, :tr.cols][tr.rows]
+    np.testing.assert_allclose(fb, plain, rtol=0, atol=1e-6 * float(np.abs(plain).max()))
     want = core._coarse_peak(fa, fb, tr.weight, a.image.shape[0])
     snr, t, x, y, h = tr.final(theta)
     np.testing.assert_array_equal((x, y), (-want[1] * P.cell_m, -want[0] * P.cell_m))  # cells -> m as the code

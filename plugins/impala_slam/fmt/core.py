@@ -718,15 +718,54 @@ def _folded_spectrum(img: FmtImage, half: int) -> np.ndarray:
     return img.folded
 
 
-def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR) -> np.ndarray:
-    """b seen with a's axes: J(q) = b(R(theta)^T q), about the centre cell (the radar)."""
+def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR, r0: int = 0,
+              r1: int | None = None) -> np.ndarray:
+    """b seen with a's axes: J(q) = b(R(theta)^T q), about the centre cell (the radar); rows r0..r1 of it."""
     n = img.shape[0]
+    r1 = n if r1 is None else r1
     c, s = math.cos(theta), math.sin(theta)
     cx = cy = float(n // 2)
-    # dst pixel q -> src pixel R^T (q - centre) + centre (WARP_INVERSE_MAP)
-    m = np.array([[c, s, cx - c * cx - s * cy], [-s, c, cy + s * cx - c * cy]])
-    return cv2.warpAffine(img, m, (n, n), flags=interp + cv2.WARP_INVERSE_MAP,
+    # dst pixel q -> src pixel R^T (q - centre) + centre (WARP_INVERSE_MAP); from row r0
+    m = np.array([[c, s, cx - c * cx - s * cy + s * r0], [-s, c, cy + s * cx - c * cy + c * r0]])
+    return cv2.warpAffine(img, m, (n, r1 - r0), flags=interp + cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
+def _halves_spectrum(img: np.ndarray, theta: float, cols: int, pool: TaskPool | None) -> np.ndarray:
+    """rfft2's first ``cols`` columns of ``img`` turned by theta (bilinear) and windowed, to float rounding, in
+    two halves of rows whether on a pool's threads or one after the other (the same numbers): each half warped
+    (OpenCV computes its coordinates from the half's first row: not the whole image's bits), windowed and
+    transformed along its rows (``cv2.dft``, packed), then the kept columns transformed by scipy.fft on
+    :func:`_workers`' threads. For the translation returned on the coarse grid, which nothing runs beside: at
+    512 cells the calling thread's share 0.9 ms against 1.7-1.9 ms for the whole image's warp and transform."""
+    n = img.shape[0]
+    hann = _hann(img.shape)
+
+    def half(r0: int, r1: int) -> np.ndarray:
+        w = _derotate(img, theta, cv2.INTER_LINEAR, r0, r1)
+        w *= hann[r0:r1]
+        return _unpack_rows(cv2.dft(w, flags=cv2.DFT_ROWS), cols)
+
+    h = n // 2
+    parts = pool.map(half, [(0, h), (h, n)]) if pool is not None else [half(0, h), half(h, n)]
+    import scipy.fft
+
+    return scipy.fft.fft(np.concatenate(parts), axis=0, workers=_workers())
+
+
+def _unpack_rows(ccs: np.ndarray, cols: int) -> np.ndarray:
+    """The first ``cols`` columns (complex64) of each row's rfft from ``cv2.dft(..., DFT_ROWS)``'s packed rows
+    of an even width n: (re 0, re 1, im 1, ..., re n/2)."""
+    rows, n = ccs.shape
+    h = n // 2
+    out = np.empty((rows, cols), np.complex64)
+    inner = min(cols, h)
+    out[:, 0] = ccs[:, 0]
+    if inner > 1:
+        out[:, 1:inner] = ccs[:, 1:2 * inner - 1].view(np.complex64)
+    if cols > h:
+        out[:, h] = ccs[:, n - 1]
+    return out
 
 
 def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
@@ -835,9 +874,10 @@ class _Translator:
     def spectrum(self, theta: float, fine: bool = False) -> np.ndarray:
         """The spectrum (first columns of rfft2) of b turned by theta (j(q) = b(R^T q)), windowed;
         on the coarse grid, that of b halved then turned (``fine``: of b turned, the coarse rows)."""
-        if self.rows is None or fine:
-            f = _rfft2(_derotate(self.b.image, theta) * _hann(self.b.image.shape), self.cols)
-            return f if self.rows is None else f[self.rows]
+        if fine and self.rows is not None:  # the translation returned: alone, so shared by halves of rows
+            return _halves_spectrum(self.b.image, theta, self.cols, self.pool)[self.rows]
+        if self.rows is None:
+            return _rfft2(_derotate(self.b.image, theta) * _hann(self.b.image.shape), self.cols)
         img = _half(self.b)  # cubic: bilinear interpolation at 2 cells per wavelength of the band's top blurs it
         return _rfft2(_derotate(img, theta, cv2.INTER_CUBIC) * _hann(img.shape), self.cols)
 
