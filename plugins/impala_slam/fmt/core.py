@@ -267,7 +267,15 @@ def _low_pass(n: int, cell_m: float, min_wavelength_m: float) -> np.ndarray | No
 
 def _resample(grid: Grid, p: FmtParams, pool: TaskPool | None = None) -> np.ndarray:
     """The grid's values on the registration grid (radar at cell size // 2, axes kept); ``pool``:
-    the 2 x 2 mean in halves of rows on its threads (the same numbers)."""
+    the 2 x 2 mean and the warp in halves of rows on its threads (the same numbers)."""
+    return _resample_parts(grid, p, pool)[0]
+
+
+def _resample_parts(grid: Grid, p: FmtParams, pool: TaskPool | None = None,
+                    then: Callable[[np.ndarray, int, int], Any] | None = None) -> tuple[np.ndarray, list]:
+    """:func:`_resample`'s image and the list of ``then(image, r0, r1)`` on its rows r0..r1: with a pool, on
+    each half of rows after that half's warp, on the pool's threads; without, once on the whole image (``then``
+    None: an empty list)."""
     data = np.ascontiguousarray(grid.data, np.float32)
     s = grid.cell_m / p.cell_m
     # registration pixel = s * grid pixel + offset, the vehicle origin -> centre cell
@@ -286,8 +294,27 @@ def _resample(grid: Grid, p: FmtParams, pool: TaskPool | None = None) -> np.ndar
             data = data[:h, :w].reshape(h // k, k, w // k, k).mean(axis=(1, 3))
         m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2],
                       [0.0, 1.0, (grid.origin_y_m + 0.5 * (k - 1) * grid.cell_m) / p.cell_m + p.size // 2]])
-        interp = cv2.INTER_LINEAR
-    return cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        # a shift only: warped in two halves of rows, with or without a pool (so the same numbers with 1 thread or
+        # 2), each from its first row (the shift's row offset less r0). OpenCV computes the coordinates in float32:
+        # the same numbers as the whole image's warp whenever the offsets less r0 are exact in float32, as the
+        # panoramics' are (multiples of 1/4 cell: every RADIATE and campus grid checked)
+        out = np.empty((p.size, p.size), data.dtype)
+
+        def warp(r0: int, r1: int) -> Any:
+            mr = m.copy()
+            mr[1, 2] -= r0
+            cv2.warpAffine(data, mr, (p.size, r1 - r0), dst=out[r0:r1], flags=cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            return then(out, r0, r1) if then is not None and pool is not None and pool.threads > 1 else None
+
+        mid = p.size // 2
+        if pool is not None and pool.threads > 1:
+            return out, pool.map(warp, [(0, mid), (mid, p.size)])
+        warp(0, mid)
+        warp(mid, p.size)
+        return out, [] if then is None else [then(out, 0, p.size)]
+    img = cv2.warpAffine(data, m, (p.size, p.size), flags=interp, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return img, [] if then is None else _halves(pool, lambda r0, r1: then(img, r0, r1), p.size)
 
 
 def warm_up() -> None:
@@ -345,22 +372,25 @@ def _halves(pool: TaskPool | None, fn: Callable[[int, int], Any], rows: int) -> 
 
 
 def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None = None) -> FmtImage:
-    img = _resample(grid, p, pool)
-    n = img.shape[0]
-
-    def observed_of(r0: int, r1: int) -> np.ndarray:
+    def observed_of(img: np.ndarray, r0: int, r1: int) -> tuple[np.ndarray, float]:
         part = img[r0:r1]
-        return part[part > 0]
+        vals = part[part > 0]
+        return vals, float(vals.max()) if vals.size else 0.0
 
-    # the observed values in row order (img[img > 0]), a half of the rows each
-    vals = np.concatenate(_halves(pool, observed_of, n))
+    # the observed values in row order (img[img > 0]) and their maximum, a half of the rows each, after that
+    # half's warp
+    img, parts = _resample_parts(grid, p, pool, observed_of)
+    vals = np.concatenate([v for v, _ in parts])
+    n = img.shape[0]
     out = np.zeros_like(img)
     hann = _hann(out.shape)
-    windowed = np.empty_like(img)  # every cell written by finish()
+    hi = int(p.band[1] * n)
+    square = out.shape[1] == n and n % 2 == 0 and hi + 4 < n // 2  # the polar spectrum from the rfft2 kept
+    windowed = np.empty_like(img) if square else None  # every cell written by finish(); only that path uses it
     if vals.size:
         if linear_power:
             level = _quantile(vals, p.db_floor_quantile)  # vals: reordered
-            level = max(level, float(vals.max()) * 1e-12, np.finfo(np.float32).tiny)
+            level = max(level, max(m for _, m in parts) * 1e-12, np.finfo(np.float32).tiny)
         else:
             level = _quantile(vals, p.db_floor_quantile)
     taper = _taper(p)
@@ -372,13 +402,13 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             keep = part > level
             o[keep] = 10.0 * np.log10(part[keep] / level) if linear_power else part[keep] - level
         o *= taper[r0:r1]
-        np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
+        if windowed is not None:
+            np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
 
     _halves(pool, finish, n)
     lp = _low_pass(n, p.cell_m, p.min_wavelength_m)
     cols, _ = _columns(out.shape, lp, True)
-    hi = int(p.band[1] * n)
-    if out.shape[1] == n and n % 2 == 0 and hi + 4 < n // 2:
+    if windowed is not None:
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
         # image is the older one of a pair, the translation's spectrum on the full grid (_spectrum)
         rf = _rfft2(windowed, max(cols, hi + 4), cv=False)  # scipy.fft's: the rotation's spectra as before, bit for bit
@@ -603,13 +633,41 @@ def _irfft2(spec: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, float
     return c, s2
 
 
-def _whitened(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None) -> np.ndarray:
-    """The normalised cross-power spectrum of eq. 1 (seed 2), times ``weight`` when given."""
-    cross = fb * np.conj(fa)
-    mag = np.abs(cross)
-    np.maximum(mag, mag.dtype.type(1e-12 * max(float(mag.max()), 1e-30)), out=mag)
-    # times a real factor (weight / |cross|), not a complex division
-    cross *= np.divide(weight, mag, out=mag) if weight is not None else np.reciprocal(mag, out=mag)
+_ELIDE_BYTES = 256 * 1024  # numpy's NPY_MIN_ELIDE_BYTES
+
+
+def _whitened(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, pool: TaskPool | None = None) -> np.ndarray:
+    """The normalised cross-power spectrum of eq. 1 (seed 2), times ``weight`` when given; ``pool``: in two
+    halves of rows on its threads (each coefficient computed alike, the largest magnitude of both halves'
+    maxima: the same numbers)."""
+    rows = fa.shape[0]
+    # numpy computes fb * conj(fa) as conj(fa) * fb written over conj(fa)'s temporary when that holds at least
+    # NPY_MIN_ELIDE_BYTES (its temporary elision), into a new array otherwise, and the two can differ in the
+    # last bit: the same choice made here explicitly, by the whole spectrum's size, for the halves too
+    inplace = fa.nbytes >= _ELIDE_BYTES and fa.shape == fb.shape
+    cross = np.empty(fb.shape, np.result_type(fa, fb)) if not inplace else np.conj(fa)
+
+    def product(r0: int, r1: int) -> tuple[np.ndarray, float]:
+        c = cross[r0:r1]
+        if inplace:
+            np.multiply(c, fb[r0:r1], out=c)  # the elided product's operands: the temporary first
+        else:
+            c[...] = fb[r0:r1] * np.conj(fa[r0:r1])
+        mag = np.abs(c)
+        return mag, float(mag.max()) if mag.size else 0.0
+
+    def scale(r0: int, r1: int, mag: np.ndarray, top: float) -> None:
+        np.maximum(mag, mag.dtype.type(1e-12 * max(top, 1e-30)), out=mag)
+        # times a real factor (weight / |cross|), not a complex division
+        cross[r0:r1] *= np.divide(weight[r0:r1], mag, out=mag) if weight is not None else np.reciprocal(mag, out=mag)
+
+    spans = [(0, rows)] if pool is None or pool.threads < 2 or rows < 2 else [(0, rows // 2), (rows // 2, rows)]
+    parts = pool.map(product, spans) if len(spans) > 1 else [product(0, rows)]
+    top = max(m for _, m in parts)
+    if len(spans) > 1:
+        pool.map(scale, [(r0, r1, mag, top) for (r0, r1), (mag, _) in zip(spans, parts, strict=True)])
+    else:
+        scale(0, rows, parts[0][0], top)
     return cross
 
 
@@ -622,11 +680,12 @@ def _correlate(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape:
     return _correlate_sums(fa, fb, weight, shape)[0]
 
 
-def _correlate_sums(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None,
-                    shape: tuple[int, ...]) -> tuple[np.ndarray, tuple[float, float]]:
+def _correlate_sums(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray | None, shape: tuple[int, ...],
+                    pool: TaskPool | None = None) -> tuple[np.ndarray, tuple[float, float]]:
     """:func:`_correlate`'s surface and its sum and sum of squares, from the spectrum (its DC term, and
-    Parseval: sum c^2 = sum |X|^2 / size), for :func:`_peak`'s SNR without another pass over the surface."""
-    cross = _whitened(fa, fb, weight)
+    Parseval: sum c^2 = sum |X|^2 / size), for :func:`_peak`'s SNR without another pass over the surface;
+    ``pool``: the whitening in halves on its threads (the same numbers)."""
+    cross = _whitened(fa, fb, weight, pool)
     c, s2 = _irfft2(cross, (shape[0], shape[1]))
     return c, (float(cross[0, 0].real), s2 / (shape[0] * shape[1]))
 
@@ -909,13 +968,14 @@ class _Translator:
         the full grid's spectra (on the coarse grid: the translation :func:`register` returns)."""
         if fb is None:
             fb = self.spectrum(theta, fine)
-        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
+        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t; alone (not a batch's task): the whitening in halves
+        pool = None if _batched() else self.pool
         if self.rows is None:
-            dy, dx, snr, h = _peak(*_correlate_sums(self.fa, fb, self.weight, self.b.image.shape))
+            dy, dx, snr, h = _peak(*_correlate_sums(self.fa, fb, self.weight, self.b.image.shape, pool))
         elif fine:
-            dy, dx, snr, h = _coarse_peak(self.fa_fine, fb, self.weight, self.n)
+            dy, dx, snr, h = _coarse_peak(self.fa_fine, fb, self.weight, self.n, pool=pool)
         else:  # the search on the halved images: only the SNR is used (the translation is then final()'s)
-            dy, dx, snr, h = _coarse_peak(self.fa, fb, self.weight, self.n, fit=False)
+            dy, dx, snr, h = _coarse_peak(self.fa, fb, self.weight, self.n, fit=False, pool=pool)
         return snr, theta, -dx * self.p.cell_m, -dy * self.p.cell_m, h
 
     def translations(self, batch: list[tuple]) -> list[tuple]:
@@ -987,8 +1047,8 @@ def _coarse_rows(n: int, weight: np.ndarray | None, cols: int) -> np.ndarray | N
     return _coarse_of[key]
 
 
-def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
-                 fit: bool = True) -> tuple[float, float, float, np.ndarray]:
+def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int, fit: bool = True,
+                 pool: TaskPool | None = None) -> tuple[float, float, float, np.ndarray]:
     """:func:`_peak` of :func:`_correlate`'s n x n surface from the rows and columns of the
     spectra where the low-pass is not 0 (|f| < 1/4 cycle / cell on both axes), without the
     n x n surface. Why nothing is lost: the surface is the inverse transform of a spectrum
@@ -1002,8 +1062,9 @@ def _coarse_peak(fa: np.ndarray, fb: np.ndarray, weight: np.ndarray, n: int,
     sum and sum of squares are 4 times theirs, Parseval on each of the 4 interleaved grids)
     less the 7 x 7 window's. The same figures to float rounding; on RADIATE turns at
     0.2 m cells, min_wavelength_m 0.8 m, 4x smaller inverse transforms and peak searches.
-    ``fit`` False: the SNR alone (no sub-cell fit; the shift and Hessian returned are NaN)."""
-    cross = _whitened(fa, fb, weight)
+    ``fit`` False: the SNR alone (no sub-cell fit; the shift and Hessian returned are NaN). ``pool``: the
+    whitening in halves on its threads (the same numbers)."""
+    cross = _whitened(fa, fb, weight, pool)
     m = n // 2
     c, s2 = _irfft2(cross, (m, m))  # = 4 x the n x n surface every other cell
     iy, ix = np.unravel_index(int(np.argmax(c)), c.shape)
