@@ -126,6 +126,24 @@ wall time's floor, RADIATE 17.8 -> 16.5 ms, campus 18.0 -> 16.2 ms. scipy.fft is
 components' start() (:func:`warm_up`), not with this module: importing slam.FmtRegistration's module costs
 48 ms of CPU instead of 264 ms when nothing else has imported scipy.fft.
 
+Off the calling thread (issue 26, fourth round, second part), the same bits (every registration and prepared
+image of 25 RADIATE turns at both its settings and 25 campus turns, 1 and 2 threads, OpenCV on 1 and 2): the
+resampling's shift warped in two halves of rows, each half's observed values and their maximum taken after it on
+the same thread; the whitenings nothing runs beside in two halves of rows (numpy's temporary elision, which
+decides how fb * conj(fa) is rounded, made explicit); the windowed image only on the path that transforms it.
+The calling thread's CPU per registration on 2 threads, median, the code before and after alternating on the
+same 60 RADIATE and 40 campus turns (load 1.3-1.6): with OpenCV on one thread (bench/speed.py's) RADIATE 13.06
+-> 12.74 and 12.41 -> 12.18 ms (two runs), campus 13.27 -> 13.02 and 13.36 -> 13.05 ms; with OpenCV on 2 (a
+graph run's), whose own threads already share the whole warp, no change (12.24 -> 12.34, campus 12.66 -> 12.72).
+Measured and left: (1) the coarse search's de-rotation bilinear instead of bicubic (3.4 x cheaper at 256 cells:
+-1.2 ms on the calling thread, -1.8 ms on one): the RADIATE head's FMT ATE 3.7094 -> 3.2040 m and 3 of 4 campus
+seeds on the coarse grid (min_wavelength_m 2 m) better, but Oxford's pairs' rotation 0.0833 -> 0.1020 deg and ATE
+0.0871 -> 0.0880 m: bilinear's blur depends on the rotation's fractional offsets and biases the refinement's
+parabola, as this module said. (2) The spectra nothing runs beside (the first candidate's, a lone refinement
+step's, the last) in halves of rows on the pool like the translation returned: accuracy equal to the micrometre
+(the 6 campus seeds' ATE summed -3 um, RADIATE FMT -6 um, fmt_ekf_navtech +5 um), the calling thread -0.2 ms
+with OpenCV on one thread but +0.1 to +0.5 ms with OpenCV on 2 and no lower wall: not kept.
+
 I deliberately compute the correlation surfaces with scipy.fft and cv2.dft instead of calling
 ``cv2.phaseCorrelate``: it returns only the peak, and the covariance needs the surface.
 """
