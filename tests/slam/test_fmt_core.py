@@ -95,7 +95,15 @@ def test_polar_spectrum_is_the_whole_spectrum_one():
     polar = cv2.warpPolar(spec, (n // 2, P.angles), (float(n // 2), float(n // 2)), n // 2,
                           cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
     band = polar[:, int(P.band[0] * n):int(P.band[1] * n)]
-    np.testing.assert_array_equal(core.polar_spectrum(img, P), (band / float(band.std())).astype(np.float32))
+    want = (band / float(band.std())).astype(np.float32)
+    np.testing.assert_array_equal(core.polar_spectrum(img, P), want)
+    from impala_slam.fmt.parallel import TaskPool
+
+    pool = TaskPool(2)  # the resampling by halves of the angles on its threads: the same numbers
+    try:
+        np.testing.assert_array_equal(core.polar_spectrum(img, P, pool=pool), want)
+    finally:
+        pool.close()
 
 
 @pytest.mark.parametrize("iy, ix", [(40, 70), (0, 127), (125, 2)])

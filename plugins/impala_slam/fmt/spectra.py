@@ -212,11 +212,11 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         rf = rfft2_first(windowed, max(cols, hi + 4), cv=False)  # scipy.fft's: the rotation's spectra as before
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
         if coarse_rows(n, lp, cols) is None:
-            fi.polar = polar_spectrum(out, p, rf)
+            fi.polar = polar_spectrum(out, p, rf, pool)
             return fi
         # on the coarse grid, the spectrum this image will have as the older one of the next pair, beside its
         # polar spectrum (the same numbers as computed then: scipy.fft's, here rather than beside the rotation)
-        fi.polar = pool.map(call_with, [(polar_spectrum, out, p, rf), (image_spectrum, fi, cols, True)])[0] \
+        fi.polar = pool.map(call_with, [(polar_spectrum, out, p, rf, pool), (image_spectrum, fi, cols, True)])[0] \
             if pool else polar_spectrum(out, p, rf)
         if not pool:
             image_spectrum(fi, cols, True)
@@ -224,9 +224,11 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
 
 
-def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None) -> np.ndarray:
+def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None,
+                   pool: TaskPool | None = None) -> np.ndarray:
     """Steps 3-5: the high-passed |FFT| of the windowed image in polar coordinates over the band;
-    ``rf``: the windowed image's rfft2 (its first columns, at least the band's radius + 4) if known."""
+    ``rf``: the windowed image's rfft2 (its first columns, at least the band's radius + 4) if known;
+    ``pool``: the polar resampling in halves of the angles on its threads (the same numbers)."""
     n = img.shape[0]
     radii = n // 2
     lo, hi = int(p.band[0] * n), int(p.band[1] * n)  # radius of f cycles/cell = f * n pixels
@@ -239,7 +241,16 @@ def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None) 
         spec = _magnitude(img * hann_window(img.shape) if rf is None else None, m, rf, n)
         c = n // 2  # the high-pass on the square the warp reads (radius < hi, 2 x 2 neighbours): 0 beyond
         spec[c - m:c + m, c - m:c + m] *= _high_pass(n)[c - m:c + m, c - m:c + m]
-        polar = cv2.warpPolar(spec, (hi, p.angles), centre, hi, flags)
+        # cv2.warpPolar(spec, (hi, p.angles), centre, hi, flags) as its cv2.remap from its maps, kept (not computed
+        # at every call) and read by halves of the angles
+        mx, my = _polar_maps(hi, p.angles, centre)
+        polar = np.empty((p.angles, hi), np.float32)
+
+        def resample(r0: int, r1: int) -> None:
+            cv2.remap(spec, mx[r0:r1], my[r0:r1], cv2.INTER_LINEAR, dst=polar[r0:r1], borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0)
+
+        _halves(pool, resample, p.angles)
     else:
         import scipy.fft
 
@@ -248,6 +259,23 @@ def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None) 
         polar = cv2.warpPolar(spec, (radii, p.angles), centre, radii, flags)
     band = polar[:, lo:hi]
     return np.ascontiguousarray(band / max(float(band.std()), 1e-12), np.float32)
+
+
+_polar_maps_of: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _polar_maps(radii: int, angles: int, centre: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The maps ``cv2.warpPolar`` computes for its remap (linear polar, ``radii`` pixels over the radius ``radii``,
+    ``angles`` rows over a turn), as OpenCV computes them: x = rho / (width / max_radius) cos(phi 2 pi / height)
+    + cx in float64, then float32 (its warpPolar and this remap: the same numbers on every RADIATE and campus image
+    checked, tests/slam/test_fmt_core.py against cv2.warpPolar)."""
+    key = (radii, angles, centre)
+    if key not in _polar_maps_of:
+        phi = np.arange(angles, dtype=np.float64)[:, None] * (2 * math.pi / angles)
+        r = np.arange(radii, dtype=np.float64)[None, :] / (radii / float(radii))
+        _polar_maps_of[key] = ((r * np.cos(phi) + centre[0]).astype(np.float32),
+                               (r * np.sin(phi) + centre[1]).astype(np.float32))
+    return _polar_maps_of[key]
 
 
 def _magnitude(img: np.ndarray | None, m: int, rf: np.ndarray | None = None, n: int = 0) -> np.ndarray:
