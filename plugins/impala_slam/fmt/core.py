@@ -129,13 +129,14 @@ components' start() (:func:`warm_up`), not with this module: importing slam.FmtR
 Off the calling thread (issue 26, fourth round, second part), the same bits (every registration and prepared
 image of 25 RADIATE turns at both its settings and 25 campus turns, 1 and 2 threads, OpenCV on 1 and 2): the
 resampling's shift warped in two halves of rows, each half's observed values and their maximum taken after it on
-the same thread; the whitenings nothing runs beside in two halves of rows (numpy's temporary elision, which
-decides how fb * conj(fa) is rounded, made explicit; 0-0.1 ms); the polar spectrum's ``cv2.warpPolar`` as its own
-``cv2.remap`` from maps computed once (0.34 against 0.47 ms at 512 cells), by halves of the angles on the pool;
-the windowed image only on the path that transforms it. The calling thread's CPU per registration on 2 threads,
-median, the code before and after alternating on the same 60 RADIATE and 40 campus turns (load 1.3-2): with
-OpenCV on one thread (bench/speed.py's) RADIATE 12.85 -> 12.37 ms, campus 12.42 -> 11.91 ms; with OpenCV on 2 (a
-graph run's, whose own threads already shared the whole warp) RADIATE 12.28 -> 11.90 ms, campus 12.35 -> 12.41.
+the same thread; the whitenings nothing runs beside in two halves of rows when their spectrum holds 256 KiB or
+more (numpy's temporary elision, which decides how fb * conj(fa) is rounded, made explicit; 0-0.1 ms); the
+polar spectrum's ``cv2.warpPolar`` as its own ``cv2.remap`` from maps computed once (0.34 against 0.47 ms at 512
+cells), by halves of the angles on the pool; the windowed image only on the path that transforms it. The
+calling thread's CPU per registration on 2 threads, median, the code before and after alternating on the same
+60 RADIATE and 40 campus turns (load 1.3-2): with OpenCV on one thread (bench/speed.py's) RADIATE 12.85 -> 12.37
+ms, campus 12.42 -> 11.91 ms; with OpenCV on 2 (a graph run's, whose own threads already shared the whole warp)
+RADIATE 12.28 -> 11.90 ms, campus 12.35 -> 12.41.
 Measured and left: (1) the coarse search's de-rotation bilinear instead of bicubic (3.4 x cheaper at 256 cells:
 -1.2 ms on the calling thread, -1.8 ms on one): the RADIATE head's FMT ATE 3.7094 -> 3.2040 m and 3 of 4 campus
 seeds on the coarse grid (min_wavelength_m 2 m) better, but Oxford's pairs' rotation 0.0833 -> 0.1020 deg and ATE
