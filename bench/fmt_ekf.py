@@ -138,19 +138,19 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
     two rotation candidates, and the final one on the full grid when the refinement is off or ends
     without a maximum); refine (the rotation refinement's translations, the final one included); of
     which peak (the correlation peaks' search, sub-cell fit and SNR, on the full grid or the coarse
-    one), snr (the full grid's and the rotation's SNR) and fft (every FFT)."""
+    one), snr (the full grid's and the rotation's SNR) and fft (every FFT: scipy.fft's and cv2.dft's)."""
     ct: dict[str, float] = {}
     for (path, _, fn), (_, _, _, cum, callers) in stats.stats.items():  # type: ignore[attr-defined]
-        if path == "~" and "pypocketfft" in fn:
+        if path == "~" and ("pypocketfft" in fn or fn == "<dft>"):  # scipy.fft's and cv2.dft
             ct["fft"] = ct.get("fft", 0.0) + cum
-        if not path.replace(os.sep, "/").endswith(("fmt/core.py", "fmt/component.py")):
+        if not path.replace(os.sep, "/").endswith(_FMT_FILES):
             continue
         if fn in ("translations", "final"):  # _Translator's, as register calls them (not through each other)
             ct["translation"] = ct.get("translation", 0.0) + sum(v[3] for c, v in callers.items()
                                                                  if c[2] == "_register")
-        elif fn in ("_peak", "_coarse_peak"):
+        elif fn in ("surface_peak", "coarse_peak"):
             ct["peak"] = ct.get("peak", 0.0) + cum
-        elif fn in ("_snr", "_snr_sums"):
+        elif fn in ("masked_snr", "_snr_sums"):
             ct["snr"] = ct.get("snr", 0.0) + sum(v[3] for c, v in callers.items() if c[2] != "_snr_sums")
         elif fn in ("process", "prepare", "_rotation", "_refine_rotation"):
             ct[_STAGE.get(fn, fn)] = cum
@@ -158,7 +158,9 @@ def fmt_split(stats: pstats.Stats, turns: int) -> dict[str, float]:
 
 
 SPLIT = ("total", "prepare", "rotation", "translation", "refine", "peak", "snr", "fft")
-_STAGE = {"process": "total", "_rotation": "rotation", "_refine_rotation": "refine", "_snr": "snr"}
+# the FMT's modules (the registration driver, its preparation, correlation and transforms, the component)
+_FMT_FILES = tuple(f"fmt/{m}.py" for m in ("core", "spectra", "correlation", "transforms", "component"))
+_STAGE = {"process": "total", "_rotation": "rotation", "_refine_rotation": "refine", "masked_snr": "snr"}
 
 
 def split_line(name: str, ms: dict[str, float]) -> str:

@@ -21,7 +21,7 @@ import pytest
 import scipy.fft
 
 from impala_flow.msgs import Grid
-from impala_slam.fmt import core
+from impala_slam.fmt import core, correlation, spectra, transforms
 from impala_slam.fmt.core import FmtParams, prepare, register
 from impala_slam.synthetic import SyntheticWorld
 
@@ -49,16 +49,16 @@ def _plain_surface(a: np.ndarray, b: np.ndarray, weight: np.ndarray | None) -> n
 @pytest.mark.parametrize("min_wavelength_m", [0.8, 1.5, 0.0])
 def test_translation_surface_is_the_whole_spectrum_one(min_wavelength_m):
     a, b = _images()
-    hann = core._hann(a.image.shape)
+    hann = transforms.hann_window(a.image.shape)
     wa, wb = a.image * hann, core._derotate(b.image, math.radians(-4.0)) * hann
-    weight = core._low_pass(wa.shape[0], P.cell_m, min_wavelength_m)
-    cols, w = core._columns(wa.shape, weight)
+    weight = spectra.low_pass(wa.shape[0], P.cell_m, min_wavelength_m)
+    cols, w = correlation.spectrum_columns(wa.shape, weight)
     if min_wavelength_m == 0.8:
         assert cols == wa.shape[1] // 4  # cut-off at 0.25 cycles / cell (weight 0 there): columns 0 to n / 4 - 1
-    surface = core._correlate(core._rfft2(wa, cols), core._rfft2(wb, cols), w, wa.shape)
+    surface = correlation._correlate(transforms.rfft2_first(wa, cols), transforms.rfft2_first(wb, cols), w, wa.shape)
     plain = _plain_surface(wa, wb, weight)
     np.testing.assert_allclose(surface, plain, rtol=0, atol=1e-6 * float(np.abs(plain).max()))
-    got, want = core._peak(surface), core._peak(plain)
+    got, want = correlation.surface_peak(surface), correlation.surface_peak(plain)
     np.testing.assert_allclose(got[:2], want[:2], atol=1e-4)
     assert got[2] == pytest.approx(want[2], rel=1e-4)
 
@@ -69,18 +69,18 @@ def test_coarse_grid_peak_is_the_whole_surface_one(min_wavelength_m, coarse, the
     # a low-pass 0 beyond 1/4 cycle per cell (min_wavelength_m >= 4 cells): the peak, its Hessian and
     # SNR from the n/2 x n/2 grid are those of the plain n x n surface (numpy's irfft2 of the whole spectrum)
     a, b = _images()
-    hann = core._hann(a.image.shape)
+    hann = transforms.hann_window(a.image.shape)
     wa, wb = a.image * hann, core._derotate(b.image, math.radians(theta_deg)) * hann
     n = wa.shape[0]
-    weight = core._low_pass(n, P.cell_m, min_wavelength_m)
-    cols, w = core._columns(wa.shape, weight, True)
-    rows = core._coarse_rows(n, weight, cols)
+    weight = spectra.low_pass(n, P.cell_m, min_wavelength_m)
+    cols, w = correlation.spectrum_columns(wa.shape, weight, True)
+    rows = correlation.coarse_rows(n, weight, cols)
     assert (rows is not None) == coarse
     if not coarse:
         return
-    fa, fb = core._rfft2(wa, cols), core._rfft2(wb, cols)
-    got = core._coarse_peak(fa[rows], fb[rows], w[rows], n)
-    want = core._peak(_plain_surface(wa, wb, weight))
+    fa, fb = transforms.rfft2_first(wa, cols), transforms.rfft2_first(wb, cols)
+    got = correlation.coarse_peak(fa[rows], fb[rows], w[rows], n)
+    want = correlation.surface_peak(_plain_surface(wa, wb, weight))
     np.testing.assert_allclose(got[:2], want[:2], atol=1e-4)
     assert got[2] == pytest.approx(want[2], rel=1e-4)
     np.testing.assert_allclose(got[3], want[3], rtol=1e-4, atol=1e-6)
@@ -89,12 +89,21 @@ def test_coarse_grid_peak_is_the_whole_surface_one(min_wavelength_m, coarse, the
 def test_polar_spectrum_is_the_whole_spectrum_one():
     a, _ = _images()
     img, n = a.image, a.image.shape[0]
-    spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(img * core._hann(img.shape), workers=1))).astype(np.float32)
-    spec *= core._high_pass(n)
+    windowed = img * transforms.hann_window(img.shape)
+    spec = np.abs(scipy.fft.fftshift(scipy.fft.fft2(windowed, workers=1))).astype(np.float32)
+    spec *= spectra._high_pass(n)
     polar = cv2.warpPolar(spec, (n // 2, P.angles), (float(n // 2), float(n // 2)), n // 2,
                           cv2.INTER_LINEAR + cv2.WARP_FILL_OUTLIERS + cv2.WARP_POLAR_LINEAR)
     band = polar[:, int(P.band[0] * n):int(P.band[1] * n)]
-    np.testing.assert_array_equal(core.polar_spectrum(img, P), (band / float(band.std())).astype(np.float32))
+    want = (band / float(band.std())).astype(np.float32)
+    np.testing.assert_array_equal(core.polar_spectrum(img, P), want)
+    from impala_slam.fmt.parallel import TaskPool
+
+    pool = TaskPool(2)  # the resampling by halves of the angles on its threads: the same numbers
+    try:
+        np.testing.assert_array_equal(core.polar_spectrum(img, P, pool=pool), want)
+    finally:
+        pool.close()
 
 
 @pytest.mark.parametrize("iy, ix", [(40, 70), (0, 127), (125, 2)])
@@ -104,7 +113,7 @@ def test_snr_is_the_masked_mean_and_std(iy, ix):
     mask = np.ones(c.shape, bool)
     mask[np.ix_(np.arange(iy - 3, iy + 4) % 128, np.arange(ix - 3, ix + 4) % 128)] = False
     rest = c[mask]
-    assert core._snr(c, iy, ix) == float((c[iy, ix] - rest.mean()) / float(rest.std()))
+    assert correlation.masked_snr(c, iy, ix) == float((c[iy, ix] - rest.mean()) / float(rest.std()))
 
 
 def test_two_by_two_mean_is_numpys():
@@ -115,7 +124,7 @@ def test_two_by_two_mean_is_numpys():
     plain = data[:300, :300].reshape(150, k, 150, k).mean(axis=(1, 3))
     m = np.array([[1.0, 0.0, (grid.origin_x_m + 0.05) / 0.2 + 75], [0.0, 1.0, (grid.origin_y_m + 0.05) / 0.2 + 75]])
     ref = cv2.warpAffine(plain, m, (150, 150), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-    np.testing.assert_array_equal(core._resample(grid, p), ref)
+    np.testing.assert_array_equal(spectra._resample(grid, p), ref)
 
 
 def test_older_spectrum_computed_once_per_image():
@@ -156,12 +165,20 @@ def test_coarse_search_and_the_translation_returned():
     tr = core._Translator(a, b, P)
     assert tr.rows is not None
     theta = math.radians(4.0)
-    hann = core._hann(a.image.shape)
-    fa = core._rfft2(a.image * hann, tr.cols)[tr.rows]
-    fb = core._rfft2(core._derotate(b.image, theta) * hann, tr.cols)[tr.rows]
-    want = core._coarse_peak(fa, fb, tr.weight, a.image.shape[0])
+    hann = transforms.hann_window(a.image.shape)
+    fa = transforms.rfft2_first(a.image * hann, tr.cols, cv=False)[tr.rows]  # the older one's: scipy.fft's
+    fb = tr.spectrum(theta, fine=True)
+    # b turned by theta in two halves of rows (OpenCV's warp of each from its first row), windowed: its spectrum
+    n = b.image.shape[0]
+    c, s = math.cos(theta), math.sin(theta)
+    halves = [cv2.warpAffine(b.image, np.array([[c, s, n // 2 * (1 - c - s) + s * r0],
+                                                [-s, c, n // 2 * (1 + s - c) + c * r0]]), (n, n // 2),
+                             flags=cv2.INTER_LINEAR + cv2.WARP_INVERSE_MAP) for r0 in (0, n // 2)]
+    plain = scipy.fft.rfft2(np.vstack(halves) * hann)[:, :tr.cols][tr.rows]
+    np.testing.assert_allclose(fb, plain, rtol=0, atol=1e-6 * float(np.abs(plain).max()))
+    want = correlation.coarse_peak(fa, fb, tr.weight, a.image.shape[0])
     snr, t, x, y, h = tr.final(theta)
-    np.testing.assert_array_equal((-x / P.cell_m, -y / P.cell_m), (want[1], want[0]))
+    np.testing.assert_array_equal((x, y), (-want[1] * P.cell_m, -want[0] * P.cell_m))  # cells -> m as the code
     assert snr == want[2]
     coarse = tr.translation(theta)  # the search: its SNR only (the peak of the halved images' correlation)
     assert coarse[0] == pytest.approx(snr, rel=0.25)
@@ -176,7 +193,7 @@ def test_coarse_search_and_the_translation_returned():
 def test_snr_from_sums_is_the_masked_one(iy, ix):
     c = np.random.default_rng(iy + ix).normal(size=(128, 128)).astype(np.float32)
     c[iy, ix] = 30.0
-    assert core._snr_sums(c, iy, ix) == pytest.approx(core._snr(c, iy, ix), rel=1e-5)
+    assert correlation._snr_sums(c, iy, ix) == pytest.approx(correlation.masked_snr(c, iy, ix), rel=1e-5)
 
 
 def test_whitened_spectrum_is_the_cross_power_over_its_magnitude():
@@ -186,8 +203,28 @@ def test_whitened_spectrum_is_the_cross_power_over_its_magnitude():
     weight = rng.random((64, 33)).astype(np.float32)
     cross = (fb * np.conj(fa)).astype(np.complex128)
     mag = np.maximum(np.abs(cross), 1e-12 * np.abs(cross).max())
-    np.testing.assert_allclose(core._whitened(fa, fb, weight), cross / mag * weight, rtol=1e-6, atol=1e-7)
-    np.testing.assert_allclose(core._whitened(fa, fb, None), cross / mag, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(correlation._whitened(fa, fb, weight), cross / mag * weight, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(correlation._whitened(fa, fb, None), cross / mag, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("shape", [(256, 64), (400, 201)])  # under and over numpy's 256 KiB temporary elision
+def test_whitened_in_halves_on_a_pool_is_numpys_whole_expression(shape):
+    from impala_slam.fmt.parallel import TaskPool
+
+    rng = np.random.default_rng(shape[0])
+    fa, fb = ((rng.normal(size=shape) + 1j * rng.normal(size=shape)).astype(np.complex64) for _ in range(2))
+    weight = rng.random(shape).astype(np.float32)
+    pool = TaskPool(2)
+    try:
+        for w in (weight, None):
+            want = fb * np.conj(fa)  # the expression as numpy rounds it (its temporary elided or not, by size)
+            mag = np.abs(want)
+            np.maximum(mag, mag.dtype.type(1e-12 * max(float(mag.max()), 1e-30)), out=mag)
+            want *= w / mag if w is not None else 1.0 / mag
+            for got in (correlation._whitened(fa, fb, w), correlation._whitened(fa, fb, w, pool)):
+                np.testing.assert_array_equal(got.view(np.uint64), want.view(np.uint64))
+    finally:
+        pool.close()
 
 
 @pytest.mark.parametrize("min_wavelength_m", [0.8, 0.0])  # the coarse search, the full grid
@@ -260,7 +297,7 @@ def test_quantile_is_numpys(q):
     cases.append(power[power > 0].astype(np.float64))
     for x in cases:
         x = x.astype(np.float32)
-        assert core._quantile(x.copy(), q) == float(np.quantile(x, q))
+        assert spectra._quantile(x.copy(), q) == float(np.quantile(x, q))
 
 
 @pytest.mark.parametrize("linear_power,size", [(True, 256), (False, 256), (True, 151)])
@@ -276,7 +313,7 @@ def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
         grid = Grid(np.where(grid.data > 0, 10.0 * np.log10(np.maximum(grid.data, 1e-30)) + 40.0, 0.0).astype(
             np.float32), grid.cell_m, grid.origin_x_m, grid.origin_y_m)
     p = FmtParams(cell_m=0.2, size=size, range_min_m=2.5, range_max_m=25.0, taper_m=4.0, min_wavelength_m=0.8)
-    img = core._resample(grid, p)
+    img = spectra._resample(grid, p)
     vals = img[img > 0]
     level = float(np.quantile(vals, p.db_floor_quantile))
     want = np.zeros_like(img)
@@ -285,7 +322,7 @@ def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
         want[keep] = 10.0 * np.log10(img[keep] / level)
     else:
         want[keep] = img[keep] - level
-    want *= core._taper(p)
+    want *= spectra._taper(p)
     pool = TaskPool(2)
     try:
         alone, halves = prepare(grid, p, linear_power), prepare(grid, p, linear_power, workers=2, pool=pool)
