@@ -119,3 +119,21 @@ def test_dead_reckoning_follows_an_exact_circle():
         assert s.data.x_m == pytest.approx(x, abs=1e-9)
         assert s.data.y_m == pytest.approx(y, abs=1e-9)
         assert math.cos(s.data.theta_rad - th) == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(("size", "n", "m"), [(640, 609, 601), (320, 311, 301), (96, 40, 33), (64, 20, 11), (5, 4, 2)])
+def test_corner_of_the_inverse_dft_equals_the_direct_correlation(size, n, m):
+    """The k x k corner the correlator reads (k = n - m + 1 shifts), from the two spectra through
+    the partial inverse of their product, against the correlation summed cell by cell in float64."""
+    from impala_slam.rslam.matching import _corner_idft
+
+    rng = np.random.default_rng(size + m)
+    win = np.zeros((size, size), np.float32)
+    tpl = np.zeros((size, size), np.float32)
+    win[:n, :n] = rng.random((n, n))
+    tpl[:m, :m] = rng.standard_normal((m, m))
+    k = n - m + 1
+    direct = np.array([[np.sum(win[i:i + m, j:j + m].astype(np.float64) * tpl[:m, :m]) for j in range(k)]
+                       for i in range(k)])
+    scale = np.sqrt(np.sum(win[:n, :n].astype(np.float64) ** 2) * np.sum(tpl.astype(np.float64) ** 2))
+    assert np.max(np.abs(_corner_idft(cv2.dft(win), cv2.dft(tpl), k) - direct)) < 1e-6 * scale

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["contrast_box", "db_tail", "merge_tile", "mean_tile"]
+__all__ = ["contrast_box", "db_tail", "merge_tile", "mean_tile", "rows_product"]
 
 
 # one signature each, any-layout float32 images (views of tiles and windows are C-contiguous or not
@@ -157,3 +157,39 @@ def db_tail(a, p, log_floor, gain):  # pragma: no cover - compiled
         a_row, p_row = a[i], p[i]
         for j in range(a.shape[1]):
             a_row[j] = (a_row[j] - log_floor) * gain if p_row[j] > zero else zero
+
+
+
+
+@numba.njit(numba.void(_CIMG, _CIMG, _CIMG, _CIMG), cache=True, nogil=True)
+def rows_product(rows, spec_a, spec_b, out):  # pragma: no cover - compiled
+    """``out = rows @ (spec_a conj(spec_b))`` over the columns 1 .. n - 2 of two CCS-packed spectra
+    (:func:`cv2.dft`'s layout: there, (re, im) pairs of one frequency per row; the product as
+    :func:`cv2.mulSpectrums` with ``conjB``, formed four rows at a time and never stored whole);
+    the columns 0 and n - 1 of ``out`` are left 0. float32, each row read once, in a fixed order:
+    numpy's BLAS product (0.33 ms against 0.51 ms for 18 x 640 x 640) starts threads of its own,
+    spinning against the pool's (R-SLAM's CPU per turn 54 -> 70 ms on Beynes unless
+    OMP_NUM_THREADS=1)."""
+    out[:] = 0.0
+    n_u, n_v = spec_a.shape
+    buf = np.zeros((4, n_v), np.float32)
+    for u0 in range(0, n_u, 4):
+        m = min(4, n_u - u0)
+        for r in range(m):
+            a, b, p = spec_a[u0 + r], spec_b[u0 + r], buf[r]
+            for v in range(1, n_v - 1, 2):
+                p[v] = a[v] * b[v] + a[v + 1] * b[v + 1]
+                p[v + 1] = a[v + 1] * b[v] - a[v] * b[v + 1]
+        if m == 4:
+            s0, s1, s2, s3 = buf[0], buf[1], buf[2], buf[3]
+            for i in range(rows.shape[0]):
+                w0, w1, w2, w3 = rows[i, u0], rows[i, u0 + 1], rows[i, u0 + 2], rows[i, u0 + 3]
+                o = out[i]
+                for v in range(n_v):
+                    o[v] += (w0 * s0[v] + w1 * s1[v]) + (w2 * s2[v] + w3 * s3[v])
+        else:
+            for r in range(m):
+                for i in range(rows.shape[0]):
+                    w = rows[i, u0 + r]
+                    for v in range(n_v):
+                        out[i, v] += w * buf[r, v]
