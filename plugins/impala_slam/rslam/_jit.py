@@ -1,7 +1,8 @@
 """R-SLAM's compiled loops (numba, ``cache=True``, nogil; imported by ``RSlam.start()`` or at the
 first map update or read, never with the plugin), each one pass: the merge of a turn into a map
-tile (eq. 6), the read of a tile's weighted mean, :func:`~impala_slam.rslam.matching.contrast`.
-They give the bits of the formulations they replace (alpha zeroed where the amplitude is NaN,
+tile (eq. 6), the read of a tile's weighted mean, :func:`~impala_slam.rslam.matching.contrast`,
+the first half of the correlator's partial inverse DFT (:func:`rows_product`).
+All but the last give the bits of the formulations they replace (alpha zeroed where the amplitude is NaN,
 alpha A, a masked add and the normaliser's add; a masked division and the support; two
 cv2.blur, a masked division, a difference and a product; tests/slam/test_rslam_threads.py
 compares them)."""
