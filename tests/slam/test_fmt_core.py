@@ -295,9 +295,13 @@ def test_quantile_is_numpys(q):
              rng.lognormal(0.0, 3.0, 100_001), rng.random(7), np.full(10_000, 2.5)]
     power = _images()[0].image  # a prepared image's values too
     cases.append(power[power > 0].astype(np.float64))
+    cases.append(np.concatenate([rng.exponential(10.0, 60_000), rng.exponential(1.0, 60_000)]))  # unlike halves
     for x in cases:
         x = x.astype(np.float32)
         assert spectra._quantile(x.copy(), q) == float(np.quantile(x, q))
+        # in two pieces (prepare's halves of rows), each with its own bound, on their threads
+        pieces = [x[:x.size // 3].copy(), x[x.size // 3:].copy()]
+        assert spectra._quantile_of([(v, *spectra._upper(v, q)) for v in pieces], q) == float(np.quantile(x, q))
 
 
 @pytest.mark.parametrize("linear_power,size", [(True, 256), (False, 256), (True, 151)])

@@ -137,6 +137,13 @@ calling thread's CPU per registration on 2 threads, median, the code before and 
 60 RADIATE and 40 campus turns (load 1.3-2): with OpenCV on one thread (bench/speed.py's) RADIATE 12.85 -> 12.37
 ms, campus 12.42 -> 11.91 ms; with OpenCV on 2 (a graph run's, whose own threads already shared the whole warp)
 RADIATE 12.28 -> 11.90 ms, campus 12.35 -> 12.41.
+The threshold's quantile (fourth round, third part), the same numbers as np.quantile: each half of rows selects,
+after its warp and on its own thread, its values over a bound taken on a sample of its own (stride 61: a stride of
+64 sampled the same few columns of every row, and on RADIATE one half's bound lay over the whole image's quantile),
+and the calling thread partitions only a window of those around the two order statistics (from a sample of them):
+its share 0.90 -> 0.40 ms at 512 cells, 0.63 -> 0.28 ms at 400. The calling thread's CPU per registration on 2
+threads (OpenCV on 1), median, the code before and after alternating on the same 60 RADIATE and 40 campus turns three
+times (load 1.4-5): RADIATE 12.18 -> 11.80 ms, campus 12.95 -> 12.56 ms; one thread 19.61 -> 19.42, 19.92 -> 19.50.
 Measured and left: (1) the coarse search's de-rotation bilinear instead of bicubic (3.4 x cheaper at 256 cells:
 -1.2 ms on the calling thread, -1.8 ms on one): the RADIATE head's FMT ATE 3.7094 -> 3.2040 m and 3 of 4 campus
 seeds on the coarse grid (min_wavelength_m 2 m) better, but Oxford's pairs' rotation 0.0833 -> 0.1020 deg and ATE

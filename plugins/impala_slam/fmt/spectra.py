@@ -133,20 +133,55 @@ def _quantile(vals: np.ndarray, q: float) -> float:
     low on a sample (the exact ones whenever fewer values than the lower rank lie under it, else the
     whole array is partitioned as numpy does), then numpy interpolates them with the same weight
     (its virtual index (n - 1) q, here on two values: the same float64 fraction and formula)."""
-    n = vals.size
+    return _quantile_of([(vals, *_upper(vals, q))], q)
+
+
+def _upper(vals: np.ndarray, q: float) -> tuple[float, np.ndarray]:
+    """A bound well under the q-quantile of ``vals`` (taken on a sample; -inf for few values) and the
+    values at or above it: :func:`_quantile_of`'s part of one piece of the values (each half of rows's
+    on its own thread)."""
+    if vals.size < 4096:
+        return -math.inf, vals
+    # a prime stride: 64 sampled the same few columns of every row, on RADIATE the half of rows' sample quantile
+    # over the whole's
+    sample = vals[::61].copy()
+    j = max(int((q - 0.05) * (sample.size - 1)), 0)  # well under the sample's q-quantile (halves differ by 0.04)
+    bound = float(np.partition(sample, j)[j])
+    return bound, vals[vals >= bound]
+
+
+def _quantile_of(parts: list[tuple[np.ndarray, float, np.ndarray]], q: float) -> float:
+    """``np.quantile`` of the values of all ``parts``, each ``(values, bound, values at or above bound)``
+    (:func:`_upper`): the values at or above the largest bound selected (any bound gives the same
+    number: the order statistics are exact, or the fallback is numpy's on all the values)."""
+    n = sum(v.size for v, _, _ in parts)
     v = (n - 1) * q  # numpy's virtual index (float64), its floor and fraction
     k = int(math.floor(v))
-    if n < 4096 or k + 1 >= n:
+
+    def numpys() -> float:
+        vals = parts[0][0] if len(parts) == 1 else np.concatenate([p[0] for p in parts])
         return float(np.quantile(vals, q, overwrite_input=True))
-    sample = vals[::64].copy()
-    j = max(int((q - 0.05) * (sample.size - 1)), 0)  # well under the sample's q-quantile
-    bound = np.partition(sample, j)[j]
-    top = vals[vals >= bound]
+
+    if n < 4096 or k + 1 >= n:
+        return numpys()
+    bound = max(b for _, b, _ in parts)
+    tops = [t if b == bound else t[t >= bound] for _, b, t in parts]
+    top = tops[0] if len(tops) == 1 else np.concatenate(tops)
     below = n - top.size
     if below > k:  # the bound was not under the k-th value: numpy's own selection
-        return float(np.quantile(vals, q, overwrite_input=True))
-    top.partition((k - below, k - below + 1))
-    pair = np.array([top[k - below], top[k - below + 1]], vals.dtype)
+        return numpys()
+    r = k - below  # the rank of the lower one among the values selected
+    if top.size >= 4096:  # those around it on a sample of them: a window of a few % of them partitioned
+        sample = top[::7].copy()
+        f = r / top.size
+        lo, hi = int(max(f - 0.04, 0.0) * (sample.size - 1)), int(min(f + 0.04, 1.0) * (sample.size - 1))
+        sample.partition((lo, hi))
+        window = top[(top >= sample[lo]) & (top <= sample[hi])]
+        under = int(np.count_nonzero(top < sample[lo]))
+        if 0 <= r - under and r - under + 1 < window.size:  # the two in the window: ranks r - under, + 1 in it
+            top, r = window, r - under
+    top.partition((r, r + 1))
+    pair = np.array([top[r], top[r + 1]], parts[0][0].dtype)
     return float(np.quantile(pair, v - k, overwrite_input=True))
 
 
@@ -170,32 +205,30 @@ def _halves(pool: TaskPool | None, fn: Callable[[int, int], Any], rows: int) -> 
 
 
 def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None = None) -> FmtImage:
-    def observed_of(img: np.ndarray, r0: int, r1: int) -> tuple[np.ndarray, float]:
+    def observed_of(img: np.ndarray, r0: int, r1: int) -> tuple[np.ndarray, float, np.ndarray, float]:
         part = img[r0:r1]
         vals = part[part > 0]
-        return vals, float(vals.max()) if vals.size else 0.0
+        return vals, *_upper(vals, p.db_floor_quantile), float(vals.max()) if vals.size else 0.0
 
-    # the observed values in row order (img[img > 0]) and their maximum, a half of the rows each, after that
-    # half's warp
+    # the observed values (img[img > 0]), those over a bound under the threshold's quantile and their maximum, a
+    # half of the rows each, after that half's warp (on the pool's threads)
     img, parts = _resample_parts(grid, p, pool, observed_of)
-    vals = np.concatenate([v for v, _ in parts])
+    observed = sum(v.size for v, _, _, _ in parts)
     n = img.shape[0]
     out = np.zeros_like(img)
     hann = hann_window(out.shape)
     hi = int(p.band[1] * n)
     square = out.shape[1] == n and n % 2 == 0 and hi + 4 < n // 2  # the polar spectrum from the rfft2 kept
     windowed = np.empty_like(img) if square else None  # every cell written by finish(); only that path uses it
-    if vals.size:
+    if observed:
+        level = _quantile_of([part[:3] for part in parts], p.db_floor_quantile)  # the values: reordered
         if linear_power:
-            level = _quantile(vals, p.db_floor_quantile)  # vals: reordered
-            level = max(level, max(m for _, m in parts) * 1e-12, np.finfo(np.float32).tiny)
-        else:
-            level = _quantile(vals, p.db_floor_quantile)
+            level = max(level, max(m for _, _, _, m in parts) * 1e-12, np.finfo(np.float32).tiny)
     taper = _taper(p)
 
     def finish(r0: int, r1: int) -> None:  # threshold, dB, taper and window of rows r0..r1
         o = out[r0:r1]
-        if vals.size:
+        if observed:
             part = img[r0:r1]
             keep = part > level
             o[keep] = 10.0 * np.log10(part[keep] / level) if linear_power else part[keep] - level
