@@ -34,6 +34,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
@@ -213,6 +214,13 @@ def run_mission(turns: int, synthetic: bool, report: str, seed: int = -1, thread
     }
 
 
+def _cli(cli: Any, argv: list[str]) -> None:
+    """``impala-flow argv``, in this process; a non-zero exit stops the bench with the command named."""
+    code = cli(argv)
+    if code:
+        raise SystemExit(f"bench: impala-flow {' '.join(argv[:2])} exited with {code}")
+
+
 def run_oxford(report: str) -> dict:
     """The real Oxford scans through the user's path: ``impala-flow import oxford`` then
     ``graphs/oxford.yaml``; the per-pair errors come from the graph's recorded poses (the
@@ -226,11 +234,11 @@ def run_oxford(report: str) -> dict:
         return {}
     out = Path(report + "-oxford")
     out.mkdir(parents=True, exist_ok=True)
-    mission = out / "oxford-sample.mcap"
-    cli(["import", "oxford", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
+    mission = Path(report + "-oxford-sample.mcap")  # beside the graph's folder: a run refuses an out holding its input
+    _cli(cli, ["import", "oxford", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
     t0 = time.perf_counter()
-    cli(["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
-         "--no-progress", "--summary-json", str(out / "summary.json")])
+    _cli(cli, ["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
+               "--no-progress", "--summary-json", str(out / "summary.json")])
     wall = time.perf_counter() - t0
     m = json.loads((out / "metrics.json").read_text())
     pairs = m.get("pairs", [])
@@ -261,10 +269,10 @@ def run_radiate(report: str) -> dict:
         return {}
     out = Path(report + "-radiate")
     out.mkdir(parents=True, exist_ok=True)
-    mission = out / "radiate-fog_6_0-head.mcap"
-    cli(["import", "radiate", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
-    cli(["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
-         "--no-progress"])
+    mission = Path(report + "-radiate-fog_6_0-head.mcap")  # beside the graph's folder, as above
+    _cli(cli, ["import", "radiate", str(folder), "-o", str(mission), "--no-progress", "--overwrite"])
+    _cli(cli, ["run", str(ROOT / "graphs" / "oxford.yaml"), "--var", f"mission={mission}", "--var", f"out={out}",
+               "--no-progress"])
     with MissionReader(out / "oxford.mcap") as r:
         poses = [(m.t_ns, m.data) for m in r.messages(["slam/pose"])]
     fwd, lat, rot, speed = [], [], [], []
