@@ -20,8 +20,8 @@ import impala_msgs
 from impala_flow import msgs
 
 __all__ = ["DatasetError", "ImportReport", "Scan", "NavtechDataset", "navtech_config", "iter_mission",
-           "read_csv_columns", "enu_to_odom", "counts_to_power", "power_of_counts", "gap_summary", "time_steps_back",
-           "t_text",
+           "read_csv_columns", "enu_to_odom", "counts_to_power", "power_of_counts", "pixel_power", "gap_summary",
+           "time_steps_back", "t_text",
            "check_option", "read_text", "unix_times_ns", "check_span", "refuse_steps_back", "check_turn_period",
            "check_speed", "MAX_MISSION_SPAN_S", "MAX_STEP_BACK_S", "MAX_SPEED_MPS", "NAVTECH_TURN_S",
            "UNIX_S_MAX", "DB_PER_COUNT_MAX", "RANGE_RESOLUTION_MAX_M", "RANGE_OFFSET_MAX_BINS"]
@@ -195,8 +195,13 @@ class Scan:
     @property
     def power(self) -> np.ndarray:
         if self._power is None:
-            self._power = self.counts.astype(np.float32) / np.float32(255.0)
+            self._power = pixel_power(self.counts)
         return self._power
+
+
+def pixel_power(counts: np.ndarray) -> np.ndarray:
+    """8-bit pixels ``counts`` as the scans' ``power``: float32 ``count / 255``, in [0, 1]."""
+    return counts.astype(np.float32) / np.float32(255.0)
 
 
 @dataclass
@@ -317,7 +322,7 @@ def power_of_counts(counts: np.ndarray, db_per_count: float) -> np.ndarray:
     if counts.dtype != np.uint8:
         raise TypeError(f"counts must be uint8 pixels, got {counts.dtype}")
     if counts.size <= 256:
-        return counts_to_power(counts.astype(np.float32) / np.float32(255.0), db_per_count)
+        return counts_to_power(pixel_power(counts), db_per_count)
     db_per_count = check_option("db_per_count", db_per_count, 0.0, DB_PER_COUNT_MAX, "dB", lo_open=True)
     table = _power_table(float(db_per_count))
     if counts.ndim == 2 and counts.strides[1] == 1:  # rows of pixels: OpenCV's table look-up, 4x numpy's gather

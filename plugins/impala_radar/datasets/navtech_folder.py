@@ -99,7 +99,7 @@ class NavtechPngDataset(NavtechDataset):
         check_turn_period(1.0 / rotation_hz, f"{self.folder / 'radar'}: {len(self.scan_paths)} scan(s) "
                           f"{self.scan_paths[0].name}-{self.scan_paths[-1].name}")
         self.config = navtech_config(
-            f"{self.sensor}-{self.name}", first.power.shape[1], self.range_resolution_m,
+            f"{self.sensor}-{self.name}", first.counts.shape[1], self.range_resolution_m,
             range_offset_m=range_offset_bins * self.range_resolution_m, beams_per_turn=rows, rotation_hz=rotation_hz)
         if report is not None:
             self._report_scan_times(report)

@@ -37,7 +37,7 @@ from PIL import Image
 
 from impala_flow import msgs
 
-from .common import DatasetError
+from .common import DatasetError, pixel_power
 
 __all__ = ["ENCODER_SIZE", "HEADER_BYTES", "MAX_SCAN_BYTES", "NavtechScan", "png_header", "read_navtech_png",
            "ccw_azimuth", "check_grey8", "decode_grey8", "reference_scan"]
@@ -61,7 +61,7 @@ class NavtechScan:
     """One decoded turn: per-row ``timestamps_ns`` (int64), ``encoder`` counts,
     ``azimuth_rad`` (the dataset's clockwise angle, see the module doc), ``valid`` (flag byte
     == 255), ``flag`` (the raw byte), ``counts`` (uint8, rows x bins: the pixels) and
-    :attr:`power` (float32 ``counts / 255``, in [0, 1], made when first read)."""
+    :attr:`power` (float32 ``counts / 255``, in [0, 1], made at each read: :func:`.common.pixel_power`)."""
 
     timestamps_ns: np.ndarray
     encoder: np.ndarray
@@ -72,7 +72,7 @@ class NavtechScan:
 
     @property
     def power(self) -> np.ndarray:
-        return self.counts.astype(np.float32) / np.float32(255.0)
+        return pixel_power(self.counts)
 
 
 def _sniff(head: bytes) -> str:
@@ -257,11 +257,9 @@ _CRC_PIECE = 4096
 
 
 def _stored(raw: bytes) -> bytes:
-    """``raw`` as a zlib stream of stored (uncompressed) deflate blocks: what ``zlib.compress(raw, 0)``
-    gives, without its pass over the data."""
+    """``raw`` (not empty) as a zlib stream of stored (uncompressed) deflate blocks, as
+    ``zlib.compress(raw, 0)`` writes them, without its pass over the data."""
     n = len(raw)
-    if n <= 65535:
-        return zlib.compress(raw, 0)
     parts = [b"\x78\x01"]
     for i in range(0, n, 65535):
         k = min(65535, n - i)
