@@ -249,9 +249,10 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             return fi
         # on the coarse grid, the spectrum this image will have as the older one of the next pair, beside its
         # polar spectrum (the same numbers as computed then: scipy.fft's, here rather than beside the rotation)
-        fi.polar = pool.map(call_with, [(polar_spectrum, out, p, rf, pool), (image_spectrum, fi, cols, True)])[0] \
-            if pool else polar_spectrum(out, p, rf)
-        if not pool:
+        if pool:
+            fi.polar = pool.map(call_with, [(polar_spectrum, out, p, rf, pool), (image_spectrum, fi, cols, True)])[0]
+        else:
+            fi.polar = polar_spectrum(out, p, rf)
             image_spectrum(fi, cols, True)
         return fi
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
