@@ -188,11 +188,12 @@ class McapWriter:
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         self._record(Metadata(name=name, metadata=data), name)
 
-    def add_message(self, channel_id: int, t_ns: int, parts: list, seq: int) -> None:
+    def add_message(self, channel_id: int, t_ns: int, parts: list, seq: int, cut: bool = True) -> None:
         """Append one message whose payload is the concatenation of ``parts`` (bytes or any
         buffers, each copied once, into the chunk; its length is known once they are in, and
         written into the record's head then). Nothing else per message: the chunk's time span
-        and the counts are taken from its index when it is cut."""
+        and the counts are taken from its index when it is cut. ``cut=False`` leaves a full chunk
+        open (the next message's copies follow it into the same chunk: :meth:`cut_if_full`)."""
         buf = self._buf
         idx = self._index.get(channel_id)
         if idx is None:
@@ -203,15 +204,21 @@ class McapWriter:
         for p in parts:
             buf += p
         _pack_msg_into(buf, off, _OP_MESSAGE, len(buf) - off - 9, channel_id, seq, t_ns, t_ns)
-        if len(buf) >= self._chunk_size:
+        if cut and len(buf) >= self._chunk_size:
+            self.flush_chunk()
+
+    def cut_if_full(self) -> None:
+        """Cut the chunk in progress if it has reached the chunk size."""
+        if len(self._buf) >= self._chunk_size:
             self.flush_chunk()
 
     def add_messages(self, channel_id: int, t_ns: int, parts: list, seq: int, channel_id2: int,
                      payload2: bytes) -> None:
         """:meth:`add_message` of two messages of the same time and sequence (a sample and its
-        mirror), the second's payload one buffer: one call from the writer instead of two."""
-        self.add_message(channel_id, t_ns, parts, seq)
-        buf, index = self._buf, self._index  # a new chunk's if the first message cut one
+        mirror), the second's payload one buffer: one call from the writer instead of two. Both
+        land in the same chunk: a file cut short keeps a sample with its mirror or neither."""
+        self.add_message(channel_id, t_ns, parts, seq, cut=False)
+        buf, index = self._buf, self._index
         idx = index.get(channel_id2)
         if idx is None:
             idx = index[channel_id2] = []

@@ -184,7 +184,7 @@ class MissionWriter:
 
     def _write_foreign(self, messages: Any, of: str) -> None:
         for ch, t_ns, payload in messages:
-            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], 0)
+            self._mcap.add_message(self._foreign_channel(ch, of), t_ns, [payload], 0, cut=False)
 
     @property
     def topics(self) -> dict[str, type]:
@@ -215,13 +215,17 @@ class MissionWriter:
             if mirror is not None and not self._foreign:  # the common case: the sample and its mirror, one call
                 self._mcap.add_messages(tp.channel_id, t_ns, parts, seq, tp.mirror_id, mirror.convert(data, t_ns))
                 mirror = None
-            else:
+            elif not self._foreign and mirror is None:
                 self._mcap.add_message(tp.channel_id, t_ns, parts, seq)
+            else:  # the sample's copies follow it into its chunk (a file cut short keeps all or none)
+                self._mcap.add_message(tp.channel_id, t_ns, parts, seq, cut=False)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)
         if mirror is not None:
             pb = mirror.convert(data, t_ns)
-            self._mcap.add_message(tp.mirror_id, t_ns, [pb], seq)
+            self._mcap.add_message(tp.mirror_id, t_ns, [pb], seq, cut=False)
+        if self._foreign or mirror is not None:
+            self._mcap.cut_if_full()
         tp.count += 1
         if self._flush_period_s is not None:
             now = time.monotonic()
@@ -237,6 +241,7 @@ class MissionWriter:
         for fw in self._foreign:
             self._write_foreign(fw.write_transforms(t_ns, transforms), FRAMES_MIRROR_OF)
         if any(fw.frames for fw in self._foreign) or not self.foxglove:
+            self._mcap.cut_if_full()
             return
         if self._tf is None:
             tf = self.codecs.mirror_for(TRANSFORMS)
@@ -247,7 +252,7 @@ class MissionWriter:
                                                       {MIRROR_KEY: FRAMES_MIRROR_OF})
             self._tf = tf
         pb = self._tf.convert(transforms, t_ns)
-        self._mcap.add_message(self._tf_id, t_ns, [pb], 0)
+        self._mcap.add_message(self._tf_id, t_ns, [pb], 0)  # cuts a full chunk, the foreign copies' too
 
     def foreign_summary(self) -> dict[str, dict[str, Any]]:
         """Format -> what its writer wrote and could not write (counts)."""
