@@ -8,9 +8,10 @@ Each section runs in its own process (its peak RSS is its own) through the graph
 components a user runs, timed per component: every ``process`` call (and a source's
 ``generate``) is wrapped and its wall time added to the turn in progress, a turn closing
 when the component emits on its per-turn output. Figures are medians over turns (after the
-first ``--warmup`` turns, which hold the first-call costs: FFT plans, caches) and are
-single-threaded (OMP, OpenCV and scipy.fft on one thread: the offline executor runs one
-component at a time; the second core is the live executor's, bench/engine_realtime.py).
+first ``--warmup`` turns, which hold the first-call costs: FFT plans, caches). OpenCV runs on one
+thread; the BLAS library on one as in every run (the engine's ``blas_threads``, :mod:`impala_flow._native`:
+no environment variable is set here, so the figures are those of a user's ``impala-flow run``); the
+components' own pools (``threads``) on 2.
 
 Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once):
 - ``import``: ``impala-flow import radiate`` of the Edinburgh head, scans per second (>= 50);
@@ -50,9 +51,6 @@ import tempfile
 import time
 from pathlib import Path
 from typing import Any
-
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("IMPALA_FLOW_TEST_DATA", ROOT.parent / "shared" / "data"))

@@ -3,6 +3,8 @@
 An executor (:mod:`impala_flow._offline`, :mod:`impala_flow._realtime`) keeps only its
 scheduling loop; around it, :class:`Lifecycle`
 
+- limits the BLAS libraries' own threads from the components' start to their stop
+  (:class:`~impala_flow._native.NativeThreads`, ``blas_threads``: 1 by default);
 - orders the components (:func:`event_order`: topological over the non-delayed connections,
   ties by component id, never by the YAML file's order) and starts them in that order
   (:meth:`Lifecycle.start`); a component whose ``start()`` raises is still stopped (it may
@@ -25,6 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ._component import Component
+from ._native import NativeThreads
 from ._network import Network, topological_order
 from ._ports import InputPort
 from ._summary import ComponentError, RunSummary
@@ -56,9 +59,11 @@ def check_source_time(name: str, port: str, t: int) -> None:
 class Lifecycle:
     """One run's start, stop, error and counter bookkeeping (see the module docstring)."""
 
-    def __init__(self, network: Network, summary: RunSummary) -> None:
+    def __init__(self, network: Network, summary: RunSummary, blas_threads: int | None = 1) -> None:
         self.summary = summary
         self.order = event_order(network)  # raises CycleError, naming the cycle
+        self.native = NativeThreads(blas_threads)
+        summary.blas_threads = blas_threads
         self.started: list[Component] = []
         self.start_failed: set[str] = set()
         self.wall0 = time.perf_counter()
@@ -66,7 +71,9 @@ class Lifecycle:
     def start(self, refuse: Callable[[Component], str | None] | None = None) -> None:
         """``start()`` every component in order; ``refuse(c)`` (a reason, or None) is asked
         first and stops the run before ``c`` starts. Raises the first failure as a
-        :class:`ComponentError` (phase ``start``)."""
+        :class:`ComponentError` (phase ``start``). The BLAS limit is set before the first and
+        again after the last (for the libraries their ``start()`` loaded)."""
+        self.native.apply()
         for c in self.order:
             why = refuse(c) if refuse is not None else None
             if why:
@@ -77,6 +84,7 @@ class Lifecycle:
             except Exception as e:
                 self.start_failed.add(c.name)
                 raise ComponentError(c.name, "", None, "start", e) from e
+        self.native.apply()
 
     def finish(self, error: ComponentError | None, processed: dict[str, int], skipped: dict[str, int],
                unconsumed: dict[InputPort, int] | None = None, extra: dict[str, dict[str, Any]] | None = None,
@@ -84,7 +92,10 @@ class Lifecycle:
         """Stop the started components and fill the summary; return the error to raise:
         ``error``, else the first of ``earlier`` (failures the executor collected after its
         first) and of the stop/summary failures; the others go to ``summary.errors``."""
-        later = list(earlier or []) + stop_components(self.started)
+        try:
+            later = list(earlier or []) + stop_components(self.started)
+        finally:
+            self.native.restore()
         summary = self.summary
         summary.wall_s = time.perf_counter() - self.wall0
         summary.processed = processed

@@ -74,6 +74,7 @@ from typing import Any
 from ._clock import ReplayClock
 from ._component import Component, Source
 from ._lifecycle import Lifecycle, check_source_time
+from ._native import check_blas_threads
 from ._network import Network
 from ._ports import InputPort, OutputPort, OutputTypeError
 from ._summary import ComponentError, RunSummary, log_skip
@@ -185,17 +186,19 @@ class OfflineExecutor:
     or after the mission's first time + ``duration_ns`` are not taken (its generator is
     closed), what was taken is processed and every component flushed, as at the end of the
     inputs; the summary says so (``stopped_at_duration``). The run is the same as one whose
-    sources ended there, hence as deterministic.
+    sources ended there, hence as deterministic. ``blas_threads``: the BLAS libraries' own
+    threads while the components run (:mod:`impala_flow._native`; None: the libraries' own).
     """
 
     def __init__(
         self, network: Network, clock: ReplayClock | None = None,
         progress: ProgressFn | None = None, stop_event: threading.Event | None = None,
-        progress_interval_s: float = 0.25, duration_ns: int | None = None,
+        progress_interval_s: float = 0.25, duration_ns: int | None = None, blas_threads: int | None = 1,
     ) -> None:
         if duration_ns is not None and duration_ns <= 0:
             raise ValueError(f"duration_ns must be > 0, got {duration_ns}")
         self.duration_ns = duration_ns
+        self.blas_threads = check_blas_threads(blas_threads)
         self.net = network
         self.clock = clock or ReplayClock(None)
         self.progress = progress
@@ -205,7 +208,8 @@ class OfflineExecutor:
 
     # ------------------------------------------------------------------------------
     def run(self) -> RunSummary:  # noqa: C901 - the event loop stays in one frame for speed
-        life = Lifecycle(self.net, self.summary)  # start, stop, errors, counters: shared with the real-time executor
+        # start, stop, errors, counters, the BLAS limit: shared with the real-time executor
+        life = Lifecycle(self.net, self.summary, self.blas_threads)
         order = life.order
         rank = {c.name: i for i, c in enumerate(order)}
         heap: list[tuple] = []

@@ -120,6 +120,7 @@ from typing import Any, Protocol
 from ._clock import MissionClock
 from ._component import Component, Source
 from ._lifecycle import Lifecycle, check_source_time
+from ._native import check_blas_threads
 from ._network import Network
 from ._ports import InputPort, SyncGroup
 from ._sample import Sample
@@ -188,16 +189,19 @@ class RealTimeExecutor:
     per triggerable component). ``duration_ns`` ends the run after that much mission (here:
     wall) time as at the end of the inputs: the sources stop, what they delivered is processed
     and every component flushed (``summary.stopped_at_duration``; an interrupt does not flush).
+    ``blas_threads``: the BLAS libraries' own threads while the components run
+    (:mod:`impala_flow._native`; None: the libraries' own).
     """
 
     def __init__(
         self, network: Network, stop_event: threading.Event | None = None,
         progress: ProgressFn | None = None, clock: _Clock | None = None, workers: int | None = None,
         *, drain_timeout_s: float = 2.0, stop_timeout_s: float = 5.0, progress_interval_s: float = 0.25,
-        duration_ns: int | None = None,
+        duration_ns: int | None = None, blas_threads: int | None = 1,
     ) -> None:
         if workers is not None and workers < 1:
             raise ValueError("workers must be >= 1")
+        self.blas_threads = check_blas_threads(blas_threads)
         if duration_ns is not None and duration_ns <= 0:
             raise ValueError(f"duration_ns must be > 0, got {duration_ns}")
         self.duration_ns = duration_ns
@@ -421,7 +425,8 @@ class RealTimeExecutor:
         thread per source; wait for the end (sources done and nothing scheduled, a stop, an
         error); shut down, flush, stop; return the summary or raise the first error."""
         net = self.net
-        life = Lifecycle(net, self.summary)  # start, stop, errors, counters: shared with the offline executor
+        # start, stop, errors, counters, the BLAS limit: shared with the offline executor
+        life = Lifecycle(net, self.summary, self.blas_threads)
         order = life.order  # as offline: ties by component id, never by YAML order
         summary = self.summary
         states = self._wire(order)

@@ -125,14 +125,16 @@ class Session:
 
     def run(self, spec: GraphSpec | Network, speed: Any = None, mode: str | None = None,
             progress: Callable[[int, int | None], None] | None = None,
-            duration_s: float | None = None) -> RunSummary:
+            duration_s: float | None = None, blas_threads: int | None = 1) -> RunSummary:
         """Run a graph (or an already built network) offline or live.
 
         ``mode`` (``replay`` or ``realtime``) and ``speed`` (``'max'`` or a factor) default
         to the graph's ``clock:`` section; a bare network runs offline at max speed.
         ``duration_s`` stops the run after that many seconds of mission time (live: of wall
         time) as if the inputs ended there: what was read is processed and flushed
-        (``summary.stopped_at_duration``).
+        (``summary.stopped_at_duration``). ``blas_threads``: the BLAS libraries' own threads while
+        the components run (default 1: the run's components and their own pools already share the
+        cores; None: the libraries' own; :mod:`impala_flow._native`).
         """
         duration_ns = None if duration_s is None else int(round(duration_s * 1e9))
         if isinstance(spec, Network):
@@ -146,7 +148,7 @@ class Session:
                 from ._realtime import RealTimeExecutor
 
                 return RealTimeExecutor(net, stop_event=self.stop_event, progress=progress,
-                                        duration_ns=duration_ns).run()
+                                        duration_ns=duration_ns, blas_threads=blas_threads).run()
             clock = ReplayClock(parse_speed(speed))
             return OfflineExecutor(net, clock, progress=progress, stop_event=self.stop_event,
-                                   duration_ns=duration_ns).run()
+                                   duration_ns=duration_ns, blas_threads=blas_threads).run()

@@ -79,6 +79,8 @@ class RunSummary:
     timing: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: latency per component output, real time only: mission clock at emit - origin (:mod:`impala_flow._timing`)
     latency: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: the BLAS libraries' threads during the run (None: left to the libraries; :mod:`impala_flow._native`)
+    blas_threads: int | None = 1
 
     @property
     def mission_s(self) -> float:

@@ -12,6 +12,7 @@ from .._yamlloc import YamlError
 from ..io import RecordingError, open_recording
 from . import EXIT_FAILED, EXIT_USAGE, CommandError
 from .helpers import (
+    add_blas_threads_arg,
     add_graph_args,
     check_output_over_inputs,
     check_writable_file,
@@ -35,6 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", default=None, metavar="X|max", help="replay speed (default: the "
                    "graph's clock.speed); pacing never changes the results")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_blas_threads_arg(p)
     p.add_argument("--summary-json", metavar="OUT", help="also write the run summary as JSON (with 'lost': "
                    "the messages of damaged chunks, per replayer output)")
     p.set_defaults(func=run)
@@ -82,4 +84,5 @@ def run(args: argparse.Namespace) -> int:
                 json.dump(summary.to_json(), f, indent=2, default=str)
 
     return run_network(session, spec, speed=args.speed,
-                       progress=False if args.no_progress else None, on_summary=report)
+                       progress=False if args.no_progress else None, on_summary=report,
+                       blas_threads=args.blas_threads)

@@ -7,6 +7,7 @@ import json
 import math
 
 from .helpers import (
+    add_blas_threads_arg,
     add_graph_args,
     check_output_over_inputs,
     check_speed,
@@ -52,6 +53,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "of the inputs; exit 0")
     p.add_argument("--summary-json", metavar="FILE", help="also write the run summary as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_blas_threads_arg(p)
     p.set_defaults(func=run)
 
 
@@ -81,4 +83,4 @@ def run(args: argparse.Namespace) -> int:
                 json.dump(summary.to_json(), f, indent=2, default=str)
 
     return run_network(session, spec, speed=args.speed, progress=False if args.no_progress else None,
-                       on_summary=write, duration_s=args.duration)
+                       on_summary=write, duration_s=args.duration, blas_threads=args.blas_threads)

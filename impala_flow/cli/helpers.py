@@ -53,6 +53,24 @@ def parse_vars(items: list[str]) -> dict[str, Any]:
     return out
 
 
+def add_blas_threads_arg(p: argparse.ArgumentParser) -> None:
+    """``--blas-threads N`` (default 1; 0: the BLAS libraries' own count, one per core)."""
+    p.add_argument("--blas-threads", type=_blas_threads, default=1, metavar="N",
+                   help="threads of the BLAS library (NumPy's and SciPy's matrix products) while the graph "
+                   "runs (default 1: the components and their own thread pools already share the cores, and "
+                   "BLAS threads waiting for a core spin; 0: the library's own, one per core)")
+
+
+def _blas_threads(text: str) -> int | None:
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0 (0: the library's own), got {text!r}")
+    return n or None
+
+
 def check_speed(value: Any) -> None:
     """Refuse a ``--speed`` that is not 'max' nor a finite factor >= 0.001 (exit 2)."""
     if value is None:
@@ -147,9 +165,10 @@ class Progress:
 
 def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = False,
                 progress: bool | None = None, on_summary: Callable[[RunSummary], None] | None = None,
-                duration_s: float | None = None) -> int:
+                duration_s: float | None = None, blas_threads: int | None = 1) -> int:
     """Build and run ``spec`` (for ``duration_s`` seconds of mission time when given), show
-    progress, print the summary, return the exit code (0 when it stopped at ``duration_s``)."""
+    progress, print the summary, return the exit code (0 when it stopped at ``duration_s``).
+    ``blas_threads``: :meth:`Session.run`'s."""
     check_speed(speed)
     net = session.build(spec)
     bad = timer_problems(net)  # a timer that would spin over the mission's span: refused before it starts
@@ -158,7 +177,8 @@ def run_network(session: Session, spec: Any, speed: Any = None, quiet: bool = Fa
     bar = Progress(net, enabled=progress)
     try:
         summary = session.run(net, speed=speed if speed is not None else spec.speed,
-                              mode=spec.clock_mode, progress=bar, duration_s=duration_s)
+                              mode=spec.clock_mode, progress=bar, duration_s=duration_s,
+                              blas_threads=blas_threads)
     except ComponentError as e:
         bar.close()
         partial = getattr(e, "summary", None)

@@ -191,3 +191,24 @@ def test_run_duration_must_be_a_positive_number(installed: Installed, write: Wri
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = installed.main("run", str(write("small.yaml", CHAIN)), f"--duration={bad}", capsys=capsys)
     assert code == 2 and f"argument --duration: expected a number of seconds > 0, got '{bad}'" in err
+
+
+@pytest.mark.parametrize(("arg", "expected"), [(None, 1), ("3", 3), ("0", None)])
+def test_run_blas_threads(installed: Installed, write: Write, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                          arg: str | None, expected: int | None) -> None:
+    """--blas-threads N reaches the run (its summary says which limit held); 0: the library's own."""
+    g = write("small.yaml", CHAIN)
+    extra = [] if arg is None else ["--blas-threads", arg]
+    code, out, err = installed.main("run", str(g), "--no-progress", "--summary-json", str(tmp_path / "s.json"),
+                                    *extra, capsys=capsys)
+    assert code == 0, err
+    assert json.loads((tmp_path / "s.json").read_text())["blas_threads"] == expected
+
+
+@pytest.mark.parametrize("bad", ["-1", "two", "1.5"])
+def test_run_blas_threads_refuses_a_bad_count(installed: Installed, write: Write,
+                                              capsys: pytest.CaptureFixture[str], bad: str) -> None:
+    g = write("small.yaml", CHAIN)
+    code, out, err = installed.main("run", str(g), "--blas-threads", bad, capsys=capsys)
+    assert code == 2 and "--blas-threads" in err
+    assert f"expected an integer >= 0 (0: the library's own), got {bad!r}" in err
