@@ -9,9 +9,10 @@ components a user runs, timed per component: every ``process`` call (and a sourc
 ``generate``) is wrapped and its wall time added to the turn in progress, a turn closing
 when the component emits on its per-turn output. Figures are medians over turns (after the
 first ``--warmup`` turns, which hold the first-call costs: FFT plans, caches). OpenCV runs on one
-thread; the BLAS library on one as in every run (the engine's ``blas_threads``, :mod:`impala_flow._native`:
-no environment variable is set here, so the figures are those of a user's ``impala-flow run``); the
-components' own pools (``threads``) on 2.
+thread in the in-process sections (``--opencv-threads``; 0: OpenCV's own, one per core, as a user's
+``impala-flow run`` leaves it); the BLAS library on one as in every run (the engine's ``blas_threads``,
+:mod:`impala_flow._native`: no environment variable is set here); the components' own pools
+(``threads``) on 2.
 
 Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once):
 - ``import``: ``impala-flow import radiate`` of the Edinburgh head, scans per second (>= 50);
@@ -130,11 +131,16 @@ class TurnTimer:
         return float(1e3 * np.median(ts)) if ts else float("nan")
 
 
+_OPENCV_THREADS = [1]  # --opencv-threads (0: OpenCV's own, one per core, as in a user's run)
+
+
 def _single_thread() -> None:
+    if not _OPENCV_THREADS[0]:
+        return
     try:
         import cv2
 
-        cv2.setNumThreads(1)
+        cv2.setNumThreads(_OPENCV_THREADS[0])
     except ImportError:
         pass
 
@@ -474,9 +480,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--campus-s", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=29, help="seed of the simulated missions")
     ap.add_argument("--warmup", type=int, default=3, help="first turns left out of the medians")
+    ap.add_argument("--opencv-threads", type=int, default=1, metavar="N",
+                    help="OpenCV's threads in the in-process sections (default 1; 0: OpenCV's own, one per core, "
+                    "as `impala-flow run` leaves it)")
     ap.add_argument("--section", help=argparse.SUPPRESS)
     ap.add_argument("--result", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    _OPENCV_THREADS[0] = args.opencv_threads
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if not args.radiate_mission:
@@ -520,7 +530,8 @@ def main(argv: list[str] | None = None) -> int:
 def _forward(args: argparse.Namespace) -> list[str]:
     return ["--radiate-folder", args.radiate_folder, "--radiate-mission", args.radiate_mission, "--out", args.out,
             "--beynes-s", str(args.beynes_s), "--semi-urban-s", str(args.semi_urban_s), "--campus-s",
-            str(args.campus_s), "--seed", str(args.seed), "--warmup", str(args.warmup)]
+            str(args.campus_s), "--seed", str(args.seed), "--warmup", str(args.warmup), "--opencv-threads",
+            str(args.opencv_threads)]
 
 
 if __name__ == "__main__":
