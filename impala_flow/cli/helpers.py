@@ -190,7 +190,7 @@ def record_source(session: Session, source: Source, path: str, topics: dict[str,
     net = Network(name=f"record-{source.name}")
     net.add(source)
     origin = {topic: f"{source.name}.{port}" for port, topic in topics.items()}
-    graph = {"name": net.name, "components": {source.name: {"type": type(source).type_name or type(source).__name__,
+    graph = {"name": net.name, "components": {source.name: {"type": session.registry.name_of(type(source)),
                                                             "params": source.params}}}
     rec = net.add(rec_cls(name="record", path=str(path), topics=origin, compression=compression, graph=graph,
                           flush_period_s=0.0,
