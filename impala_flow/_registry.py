@@ -274,6 +274,12 @@ class Registry:
     def component(self, type_name: str) -> type[Component]:
         return self.components[type_name]
 
+    def load_all(self) -> None:
+        """Import every component type registered by where it lives (a command listing or describing
+        them all); one that fails leaves its plugin broken and is no longer listed (:class:`ComponentTable`)."""
+        for name in list(self.components):
+            self.components.get(name)
+
     def name_of(self, cls: type[Component]) -> str:
         """The registered name of ``cls`` (a class a command imported and built itself, not through a
         graph), its ``type_name`` set as a lookup would; the class name when no plugin registered it."""

@@ -155,3 +155,20 @@ def test_the_installed_plugins_import_no_component_module_until_used() -> None:
     assert facts["before"] == [] and facts["scipy"] is False
     assert facts["after"] == ["impala_slam.rslam.component"] and facts["type_name"] == "slam.RSlam"
     assert facts["n"] >= 25  # every in-tree type listed without importing any
+
+
+def test_listing_and_schema_import_every_type_and_list_a_failing_one_as_broken(lazy_module: str) -> None:
+    from impala_flow._schema import graph_schema
+    from impala_flow.cli._plugins import describe_plugins
+
+    missing = f"no_such_module_{uuid.uuid4().hex}"
+    s = session(f"{lazy_module}:LazySink", f"{missing}:Thing")
+    data = describe_plugins(s.registry)
+    lazy = next(p for p in data["plugins"] if p["name"] == "lazy")
+    assert [c["type"] for c in lazy["components"]] == ["lazy.LazySink"]
+    assert lazy["components"][0]["inputs"][0]["name"] == "x"  # described from the imported class
+    assert [(b["name"], b["entry_point"], b["error"]) for b in data["broken"]] == [
+        ("lazy", f"{missing}:Thing", f"ModuleNotFoundError: No module named '{missing}'")]
+    schema = graph_schema(s.registry)
+    types = schema["$defs"]["component"]["else"]["properties"]["type"]["enum"]
+    assert "lazy.LazySink" in types and "lazy.Thing" not in types and "params:lazy.LazySink" in schema["$defs"]
