@@ -17,20 +17,24 @@ Every other module is private (its name starts with ``_``). The engine knows not
 radar: the radar chain lives in plugins registered through the ``impala_flow`` entry point group.
 """
 
+from typing import TYPE_CHECKING
+
 from ._clock import FakeClock, MissionClock, ReplayClock
-from ._clocksync import ClockSync
 from ._component import REQUIRED, Component, Input, Output, Param, ParamError, Periodic, Source
 from ._network import Connection, CycleError, Network
 from ._offline import OfflineExecutor, run_offline
 from ._paths import output_clash
 from ._ports import EmptyInput, InputPort, OutOfHistory, OutputPort
-from ._realtime import RealTimeExecutor
 from ._sample import Sample
 from ._session import Session
 from ._spec import GraphError, GraphSpec, closest, did_you_mean
 from ._summary import ComponentError, RunSummary
 from ._version import __version__
 from ._yamlloc import YamlError, load_yaml, location
+
+if TYPE_CHECKING:  # imported on first use (__getattr__ below)
+    from ._clocksync import ClockSync
+    from ._realtime import RealTimeExecutor
 
 #: the modules a plugin may import; every other module of the engine is private (its name
 #: starts with ``_``): the ``private_modules`` import contract and tests/test_public_api.py keep it so
@@ -47,3 +51,21 @@ __all__ = [
     "YamlError", "load_yaml", "location", "output_clash", "GraphSpec", "closest", "did_you_mean",
     "PUBLIC_MODULES", "__version__",
 ]
+
+#: public names whose modules are imported when first used (a command that runs no live graph never compiles them)
+_LAZY = {"ClockSync": "._clocksync", "RealTimeExecutor": "._realtime"}
+
+
+def __getattr__(name: str) -> object:
+    where = _LAZY.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(where, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

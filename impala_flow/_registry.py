@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import importlib
+import logging
+import sys
+from collections.abc import Callable, Iterator, MutableMapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from ._component import Component
 from .msgs import BUILTIN_TYPES, installed_packages, is_message, schema_name
 
-__all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin", "MissionSource"]
+__all__ = ["Registry", "RegistrationError", "NameConflictError", "PluginInfo", "BrokenPlugin", "MissionSource",
+           "ComponentTable"]
+
+log = logging.getLogger("impala_flow.plugins")
 
 
 class RegistrationError(ValueError):
@@ -74,15 +80,63 @@ class PluginInfo:
     types: list[str] = field(default_factory=list)
 
 
+class ComponentTable(MutableMapping[str, "type[Component]"]):
+    """The registered component types by name (a mapping, as a dict). A type registered by where
+    it lives (``"pkg.module:Class"``) is imported the first time it is looked up (a graph builds
+    it, a command describes its ports); its name is known without importing it, so a command
+    that uses none of a plugin's components never loads their modules. A module that then fails
+    to import (or names no component) leaves its plugin broken, as a failing registration
+    would: the type is forgotten, the plugin joins ``registry.broken`` with its one-line error,
+    one warning is logged, and the lookup finds nothing (validation says why)."""
+
+    def __init__(self, registry: Registry) -> None:
+        self._types: dict[str, Any] = {}  # name -> class, or "module:Class" not imported yet
+        self._registry = registry
+
+    def __getitem__(self, name: str) -> type[Component]:
+        cls = self._types[name]
+        if isinstance(cls, str):
+            cls = self._registry._import_component(name, cls)
+        return cls
+
+    def __setitem__(self, name: str, cls: Any) -> None:
+        self._types[name] = cls
+
+    def __delitem__(self, name: str) -> None:
+        del self._types[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._types
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._types)
+
+    def __len__(self) -> int:
+        return len(self._types)
+
+    def __repr__(self) -> str:
+        return f"ComponentTable({sorted(self._types)})"
+
+    def where(self, name: str) -> str:
+        """``module:Class`` of a type not imported yet, else its class's ``module:qualname``."""
+        cls = self._types[name]
+        return cls if isinstance(cls, str) else f"{cls.__module__}:{cls.__qualname__}"
+
+
 class Registry:
     """Components, message types, codecs and mirrors, each tagged with its plugin.
 
     ``registry.add_component(MyFilter)`` inside ``impala_flow_register`` registers
-    ``<plugin>.MyFilter``. A name registered twice is an error naming both plugins.
+    ``<plugin>.MyFilter``; ``registry.add_component("mypkg.filters.component:MyFilter")`` registers
+    the same name without importing the module until the type is used (:class:`ComponentTable`).
+    A name registered twice is an error naming both plugins.
     """
 
     def __init__(self) -> None:
-        self.components: dict[str, type[Component]] = {}
+        self.components: ComponentTable = ComponentTable(self)
+        #: ``(plugin, target, error) -> BrokenPlugin``: how a component module failing to import is
+        #: recorded (:func:`impala_flow.plugins.load_registry` sets one that finds the missing library's pip line)
+        self.broken_plugin: Callable[[str, str, BaseException], BrokenPlugin] = _broken_plugin
         self.types: dict[str, type] = {}
         self.codecs: dict[str, Any] = {}
         self.mirrors: dict[Any, tuple[Any, str]] = {}  # type (or key) -> (mirror factory, plugin)
@@ -111,19 +165,52 @@ class Registry:
             )
         self.owner[key] = plugin
 
-    def add_component(self, cls: type[Component], name: str | None = None) -> str:
-        """Register ``cls`` as ``<plugin>.<name or class name>``; return that name."""
-        if not (isinstance(cls, type) and issubclass(cls, Component)):
+    def add_component(self, cls: type[Component] | str, name: str | None = None) -> str:
+        """Register ``cls`` as ``<plugin>.<name or class name>``; return that name. ``cls`` may be
+        where the class lives, ``"pkg.module:Class"``: the module is imported when the type is
+        first looked up, not now (:class:`ComponentTable`)."""
+        if isinstance(cls, str):
+            module, _, attr = cls.partition(":")
+            if not (module and attr.isidentifier()):
+                raise RegistrationError(f"add_component expects a Component subclass or 'module:Class', got {cls!r}")
+            cls_name = attr
+        elif isinstance(cls, type) and issubclass(cls, Component):
+            cls_name = cls.__name__
+        else:
             raise RegistrationError(f"add_component expects a Component subclass, got {cls!r}")
         prefix = self._current.name if self._current else "local"
-        full = f"{prefix}.{name or cls.__name__}"
+        full = f"{prefix}.{name or cls_name}"
         self._claim(full)
         self.components[full] = cls
-        if not cls.__dict__.get("type_name"):
+        if not isinstance(cls, str) and not cls.__dict__.get("type_name"):
             cls.type_name = full
         if self._current:
             self._current.components.append(full)
         return full
+
+    def _import_component(self, full: str, target: str) -> type[Component]:
+        """The class of ``full``, registered as ``target`` (``module:Class``), imported now; on failure its
+        plugin is recorded broken, the type forgotten, and KeyError raised (module doc of ComponentTable)."""
+        module, _, attr = target.partition(":")
+        try:
+            cls = getattr(importlib.import_module(module), attr)
+            if not (isinstance(cls, type) and issubclass(cls, Component)):
+                raise RegistrationError(f"{target} is not a Component subclass ({cls!r})")
+        except Exception as e:  # a broken plugin must not take the run down: its types are unknown
+            plugin = self.owner.get(full, full.split(".", 1)[0])
+            b = self.broken_plugin(plugin, target, e)
+            self.broken[plugin] = b
+            self.owner.pop(full, None)
+            del self.components[full]
+            info = self.plugins.get(plugin)
+            if info is not None and full in info.components:
+                info.components.remove(full)
+            log.warning("%s; its type %s is left out (%s)", b.describe(), full, b.hint)
+            raise KeyError(full) from e
+        if not cls.__dict__.get("type_name"):
+            cls.type_name = full
+        self.components[full] = cls
+        return cls
 
     def add_type(self, cls: type) -> str:
         """Register a message type (a class decorated with ``impala_flow.msgs.message``)."""
@@ -187,6 +274,23 @@ class Registry:
     def component(self, type_name: str) -> type[Component]:
         return self.components[type_name]
 
+    def load_all(self) -> None:
+        """Import every component type registered by where it lives (a command listing or describing
+        them all); one that fails leaves its plugin broken and is no longer listed (:class:`ComponentTable`)."""
+        for name in list(self.components):
+            self.components.get(name)
+
+    def name_of(self, cls: type[Component]) -> str:
+        """The registered name of ``cls`` (a class a command imported and built itself, not through a
+        graph), its ``type_name`` set as a lookup would; the class name when no plugin registered it."""
+        where = f"{cls.__module__}:{cls.__qualname__}"
+        for name in list(self.components):  # where it is defined, or re-exported by a module already imported
+            at = self.components.where(name)
+            if at == where or (at.endswith(f":{cls.__name__}") and at.partition(":")[0] in sys.modules):
+                if self.components.get(name) is cls:
+                    return cls.type_name
+        return cls.type_name or cls.__name__
+
     def forget(self, plugin: str) -> None:
         """Remove everything ``plugin`` registered (its registration failed half-way)."""
         for key in [k for k, owner in self.owner.items() if owner == plugin]:
@@ -215,6 +319,11 @@ class Registry:
         if b.missing:
             return f"unknown component type {type_name}: {b.needs}"
         return f"type '{type_name}' comes from plugin '{b.name}', which failed to load: {b.error} ({b.hint})"
+
+
+def _broken_plugin(plugin: str, target: str, error: BaseException) -> BrokenPlugin:
+    lines = str(error).strip().splitlines()
+    return BrokenPlugin(plugin, target, error=f"{type(error).__name__}: {lines[0]}" if lines else type(error).__name__)
 
 
 def _mirror_name(key: Any) -> str:

@@ -107,6 +107,7 @@ def params_schema(cls: type[Component]) -> dict[str, Any]:
 def _component_defs(registry: Registry) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     defs: dict[str, Any] = {}
     rules: list[dict[str, Any]] = []
+    registry.load_all()  # every type's parameters are read: a module failing leaves its plugin broken, unlisted
     for name in sorted(registry.components):
         cls = registry.components[name]
         key = f"params:{name}"

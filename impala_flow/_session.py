@@ -140,6 +140,9 @@ class Session:
         if isinstance(spec, Network):
             net, mode = spec, mode or "replay"
             speed = "max" if speed is None else speed
+            for c in net.components.values():  # a component a command built itself: named as a graph names it
+                if not type(c).__dict__.get("type_name"):
+                    self.registry.name_of(type(c))
         else:
             net, mode = self.build(spec), mode or spec.clock_mode
             speed = spec.speed if speed is None else speed

@@ -163,6 +163,7 @@ def load_registry(pm: PluginManager | None = None, extra: dict[str, Any] | None 
     versions = getattr(pm, "versions", {})
     dists = getattr(pm, "dists", {})
     reg.broken.update(getattr(pm, "broken", {}))
+    reg.broken_plugin = lambda name, target, e: _broken(name, target, versions.get(name, ""), e, dists.get(name))
     for impl in reversed(pm.hook.impala_flow_register.get_hookimpls()):
         name = impl.plugin_name
         module = getattr(impl.plugin, "__name__", type(impl.plugin).__name__)

@@ -135,6 +135,7 @@ def describe_plugins(registry: Registry) -> dict[str, Any]:
     """Every plugin of ``registry`` with its version, components, message types and mission
     sources (name, help), and the broken ones (``broken``: name, entry point, version, error, hint,
     and the missing library with the line that installs it)."""
+    registry.load_all()  # a component module failing to import joins ``broken`` here, before the listing
     plugins = []
     for info in sorted(registry.plugins.values(), key=lambda p: p.name):
         plugins.append({

@@ -1,7 +1,8 @@
 """Entry point of the evaluation plugin (``eval = "impala_eval.plugin"``).
 
 Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
-component modules are imported inside the hooks, so loading the plugin stays cheap.
+components are registered by where they live (``module:Class``), imported when a graph uses them,
+so loading the plugin stays cheap.
 """
 
 from __future__ import annotations
@@ -17,13 +18,9 @@ REQUIRES = ("matplotlib", "motmetrics")
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     require(*REQUIRES)
-    from .comparison.component import TrajectoryComparison
-    from .evaluator.component import TrajectoryEvaluator
-    from .tracking.component import TrackingEvaluator
-
-    registry.add_component(TrajectoryEvaluator)
-    registry.add_component(TrackingEvaluator)
-    registry.add_component(TrajectoryComparison)
+    for where in ("evaluator.component:TrajectoryEvaluator", "tracking.component:TrackingEvaluator",
+                  "comparison.component:TrajectoryComparison"):
+        registry.add_component(f"{__package__}.{where}")  # imported when a graph uses it
 
 
 @hookimpl

@@ -2,7 +2,8 @@
 ``NavtechRadar``), front-end components, the ``simulate`` mission source, CLI commands.
 
 Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
-component modules are imported inside the hooks, so loading the plugin stays cheap.
+components are registered by where they live (``module:Class``), imported when a graph uses them,
+so loading the plugin stays cheap.
 """
 
 from __future__ import annotations
@@ -18,29 +19,13 @@ REQUIRES = ("scipy", "cv2", "PIL", "matplotlib", "numba")
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     require(*REQUIRES)
-    from .datasets.component import BoreasScans, OxfordScans, RadiateScans
-    from .simulator.component import Simulator
-
-    registry.add_component(Simulator)
-    registry.add_component(OxfordScans)
-    registry.add_component(BoreasScans)
-    registry.add_component(RadiateScans)
-    from .navtech.component import NavtechRadar
-
-    registry.add_component(NavtechRadar)
-    from .ego_velocity.component import EgoVelocity
-    from .extractor.component import PeakExtractor
-    from .pairer.component import FuzzyPairer
-    from .panoramic.component import PanoramicBuilder
-    from .report.component import FrontendReport
-    from .speckle.component import SpeckleFilter
-
-    registry.add_component(FuzzyPairer)
-    registry.add_component(EgoVelocity)
-    registry.add_component(PanoramicBuilder)
-    registry.add_component(SpeckleFilter)
-    registry.add_component(PeakExtractor)
-    registry.add_component(FrontendReport)
+    for where in ("simulator.component:Simulator", "datasets.component:OxfordScans",
+                  "datasets.component:BoreasScans", "datasets.component:RadiateScans",
+                  "navtech.component:NavtechRadar", "pairer.component:FuzzyPairer",
+                  "ego_velocity.component:EgoVelocity", "panoramic.component:PanoramicBuilder",
+                  "speckle.component:SpeckleFilter", "extractor.component:PeakExtractor",
+                  "report.component:FrontendReport"):
+        registry.add_component(f"{__package__}.{where}")  # imported when a graph uses it
     registry.add_mission_source("simulate", _simulate_mission,
                                 help="simulate a scenario (name or YAML file) with a seed, for a duration")
 

@@ -1,7 +1,8 @@
 """Entry point of the tracking plugin (``tracking = "impala_tracking.plugin"``).
 
 Layout: docs/plugins.md, "Layout of a plugin" (``<algorithm>/component.py`` + ``core.py``);
-component modules are imported inside the hooks, so loading the plugin stays cheap.
+components are registered by where they live (``module:Class``), imported when a graph uses them,
+so loading the plugin stays cheap.
 """
 
 from __future__ import annotations
@@ -17,10 +18,8 @@ REQUIRES = ("scipy", "filterpy")
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     require(*REQUIRES)
-    from .detector.component import MoverDetector
-    from .tracker.component import Tracker
     from .types import MoverDetections
 
     registry.add_type(MoverDetections)
-    registry.add_component(MoverDetector)
-    registry.add_component(Tracker)
+    for where in ("detector.component:MoverDetector", "tracker.component:Tracker"):
+        registry.add_component(f"{__package__}.{where}")  # imported when a graph uses it

@@ -46,9 +46,7 @@ def _tf_mirror(key: Any) -> Mirror:
 @hookimpl
 def impala_flow_register(registry: Any) -> None:
     require(*REQUIRES)
-    from .bridge import FoxgloveBridge
-
-    registry.add_component(FoxgloveBridge)
+    registry.add_component(f"{__package__}.bridge:FoxgloveBridge")  # imported when a graph uses it
     for t in MIRRORED:
         registry.add_mirror(t, _schema_mirror)
     registry.add_mirror(object, _json_mirror)
