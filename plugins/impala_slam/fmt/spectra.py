@@ -15,7 +15,7 @@ from impala_flow.msgs import Grid
 from .correlation import coarse_rows, spectrum_columns
 from .parallel import TaskPool
 from .params import FmtImage, FmtParams
-from .transforms import fft_workers, hann_window, rfft2_first
+from .transforms import current_workers, fft_workers, hann_window, rfft2_first
 
 __all__ = ["prepare", "polar_spectrum", "warm_up"]
 
@@ -225,24 +225,35 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         if linear_power:
             level = max(level, max(m for _, _, _, m in parts) * 1e-12, np.finfo(np.float32).tiny)
     taper = _taper(p)
+    lp = low_pass(n, p.cell_m, p.min_wavelength_m)
+    cols, _ = spectrum_columns(out.shape, lp, True)
+    width = max(cols, hi + 4)  # the windowed image's rfft2 columns kept
+    split = pool is not None and pool.threads > 1
 
-    def finish(r0: int, r1: int) -> None:  # threshold, dB, taper and window of rows r0..r1
+    def finish(r0: int, r1: int) -> np.ndarray | None:  # threshold, dB, taper and window of rows r0..r1
         o = out[r0:r1]
         if observed:
             part = img[r0:r1]
             keep = part > level
             o[keep] = 10.0 * np.log10(part[keep] / level) if linear_power else part[keep] - level
         o *= taper[r0:r1]
-        if windowed is not None:
-            np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
+        if windowed is None:
+            return None
+        np.multiply(o, hann[r0:r1], out=windowed[r0:r1])
+        import scipy.fft
 
-    _halves(pool, finish, n)
-    lp = low_pass(n, p.cell_m, p.min_wavelength_m)
-    cols, _ = spectrum_columns(out.shape, lp, True)
+        # the first step of rfft2_first(windowed, width, cv=False): the real transform of these rows (pocketfft
+        # computes each row alike, in any batch of rows: the same numbers as the whole image's)
+        return scipy.fft.rfft(windowed[r0:r1], axis=1, workers=1 if split else current_workers())[:, :width]
+
+    rows = _halves(pool, finish, n)
     if windowed is not None:
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
-        # image is the older one of a pair, the translation's spectrum on the full grid (image_spectrum)
-        rf = rfft2_first(windowed, max(cols, hi + 4), cv=False)  # scipy.fft's: the rotation's spectra as before
+        # image is the older one of a pair, the translation's spectrum on the full grid (image_spectrum):
+        # rfft2_first's (scipy.fft, cv=False), its rows transformed by halves beside the window above, its
+        # columns by halves here (each column computed alike: the same numbers)
+        rows = rows[0] if len(rows) == 1 else np.concatenate(rows)
+        rf = _columns_fft(rows, pool if split else None)
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
         if coarse_rows(n, lp, cols) is None:
             fi.polar = polar_spectrum(out, p, rf, pool)
@@ -256,6 +267,18 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             image_spectrum(fi, cols, True)
         return fi
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
+
+
+def _columns_fft(rows: np.ndarray, pool: TaskPool | None) -> np.ndarray:
+    """``scipy.fft.fft(rows, axis=0)`` (:func:`rfft2_first`'s second step), by halves of the columns on the pool's
+    threads, else on this thread's workers."""
+    import scipy.fft
+
+    if pool is None:
+        return scipy.fft.fft(rows, axis=0, workers=current_workers())
+    h = rows.shape[1] // 2
+    return np.concatenate(pool.map(lambda c0, c1: scipy.fft.fft(rows[:, c0:c1], axis=0, workers=1),
+                                   [(0, h), (h, rows.shape[1])]), axis=1)
 
 
 def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None,
