@@ -134,7 +134,7 @@ class TurnTimer:
 _OPENCV_THREADS = [1]  # --opencv-threads (0: OpenCV's own, one per core, as in a user's run)
 
 
-def _single_thread() -> None:
+def _opencv_threads() -> None:
     if not _OPENCV_THREADS[0]:
         return
     try:
@@ -177,7 +177,7 @@ def run_timed(graph: str | None, text: str | None, variables: dict[str, Any], po
     start() and stop() (``net.life``: :class:`LifeTimer`), run it at max speed."""
     from impala_flow import Session
 
-    _single_thread()
+    _opencv_threads()
     session = Session()
     spec = session.load(ROOT / "graphs" / graph, variables=variables) if graph else session.load_text(text or "")
     net = session.build(spec)

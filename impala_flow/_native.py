@@ -35,10 +35,11 @@ def check_blas_threads(n: int | None) -> int | None:
 
 class NativeThreads:
     """Limits the loaded BLAS libraries to ``blas`` threads (:meth:`apply`, again for libraries loaded
-    since) until :meth:`restore`; ``blas`` None: does nothing."""
+    since) until :meth:`restore`; ``blas`` None: does nothing. ``blas`` as the executors checked it
+    (:func:`check_blas_threads`)."""
 
     def __init__(self, blas: int | None) -> None:
-        self.blas = check_blas_threads(blas)
+        self.blas = blas
         self._limits: list[Any] = []
 
     def apply(self) -> None:

@@ -215,10 +215,8 @@ class MissionWriter:
             if mirror is not None and not self._foreign:  # the common case: the sample and its mirror, one call
                 self._mcap.add_messages(tp.channel_id, t_ns, parts, seq, tp.mirror_id, mirror.convert(data, t_ns))
                 mirror = None
-            elif not self._foreign and mirror is None:
-                self._mcap.add_message(tp.channel_id, t_ns, parts, seq)
-            else:  # the sample's copies follow it into its chunk (a file cut short keeps all or none)
-                self._mcap.add_message(tp.channel_id, t_ns, parts, seq, cut=False)
+            else:  # copies to follow (a mirror, foreign ones): into the sample's chunk, cut after them below
+                self._mcap.add_message(tp.channel_id, t_ns, parts, seq, cut=mirror is None and not self._foreign)
         for fw in self._foreign:
             self._write_foreign(fw.write(topic, t_ns, data), topic)
         if mirror is not None:

@@ -192,7 +192,7 @@ from .correlation import (
 from .parallel import TaskPool
 from .params import FmtImage, FmtParams, FmtResult
 from .spectra import call_with, half_image, image_spectrum, low_pass, polar_spectrum, prepare, warm_up
-from .transforms import batch_scope, current_workers, fft_workers, hann_window, in_batch, rfft2_first, unpack_rows
+from .transforms import batch_scope, columns_fft, fft_workers, hann_window, in_batch, rfft2_first, unpack_rows
 
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
            "phase_correlation", "warm_up"]
@@ -250,8 +250,9 @@ def _halves_spectrum(img: np.ndarray, theta: float, cols: int, pool: TaskPool | 
     two halves of rows whether on a pool's threads or one after the other (the same numbers): each half warped
     (OpenCV computes its coordinates from the half's first row: not the whole image's bits), windowed and
     transformed along its rows (``cv2.dft``, packed), then the kept columns transformed by scipy.fft on
-    :func:`current_workers`' threads. For the translation returned on the coarse grid, which nothing runs beside: at
-    512 cells the calling thread's share 0.9 ms against 1.7-1.9 ms for the whole image's warp and transform."""
+    :func:`current_workers`' threads (:func:`columns_fft`). For the translation returned on the coarse grid,
+    which nothing runs beside: at 512 cells the calling thread's share 0.9 ms against 1.7-1.9 ms for the whole
+    image's warp and transform."""
     n = img.shape[0]
     hann = hann_window(img.shape)
 
@@ -262,9 +263,7 @@ def _halves_spectrum(img: np.ndarray, theta: float, cols: int, pool: TaskPool | 
 
     h = n // 2
     parts = pool.map(half, [(0, h), (h, n)]) if pool is not None else [half(0, h), half(h, n)]
-    import scipy.fft
-
-    return scipy.fft.fft(np.concatenate(parts), axis=0, workers=current_workers())
+    return columns_fft(np.concatenate(parts))  # scipy.fft's workers, as before (the pool's halves: not timed here)
 
 
 def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,

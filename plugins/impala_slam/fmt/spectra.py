@@ -15,7 +15,7 @@ from impala_flow.msgs import Grid
 from .correlation import coarse_rows, spectrum_columns
 from .parallel import TaskPool
 from .params import FmtImage, FmtParams
-from .transforms import current_workers, fft_workers, hann_window, rfft2_first
+from .transforms import columns_fft, current_workers, fft_workers, hann_window, rfft2_first
 
 __all__ = ["prepare", "polar_spectrum", "warm_up"]
 
@@ -253,7 +253,7 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         # rfft2_first's (scipy.fft, cv=False), its rows transformed by halves beside the window above, its
         # columns by halves here (each column computed alike: the same numbers)
         rows = rows[0] if len(rows) == 1 else np.concatenate(rows)
-        rf = _columns_fft(rows, pool if split else None)
+        rf = columns_fft(rows, pool if split else None)
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])})
         if coarse_rows(n, lp, cols) is None:
             fi.polar = polar_spectrum(out, p, rf, pool)
@@ -267,18 +267,6 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             image_spectrum(fi, cols, True)
         return fi
     return FmtImage(out, polar_spectrum(out, p), p.cell_m)
-
-
-def _columns_fft(rows: np.ndarray, pool: TaskPool | None) -> np.ndarray:
-    """``scipy.fft.fft(rows, axis=0)`` (:func:`rfft2_first`'s second step), by halves of the columns on the pool's
-    threads, else on this thread's workers."""
-    import scipy.fft
-
-    if pool is None:
-        return scipy.fft.fft(rows, axis=0, workers=current_workers())
-    h = rows.shape[1] // 2
-    return np.concatenate(pool.map(lambda c0, c1: scipy.fft.fft(rows[:, c0:c1], axis=0, workers=1),
-                                   [(0, h), (h, rows.shape[1])]), axis=1)
 
 
 def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None,

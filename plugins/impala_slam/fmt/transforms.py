@@ -11,6 +11,8 @@ from contextlib import contextmanager
 import cv2
 import numpy as np
 
+from .parallel import TaskPool
+
 __all__ = ["fft_workers"]
 
 
@@ -81,6 +83,19 @@ def rfft2_first(img: np.ndarray, cols: int, cv: bool | None = None) -> np.ndarra
         return scipy.fft.rfft2(img, workers=current_workers())
     w = current_workers()
     return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=w)[:, :cols], axis=0, workers=w)
+
+
+def columns_fft(rows: np.ndarray, pool: TaskPool | None = None) -> np.ndarray:
+    """``scipy.fft.fft(rows, axis=0)``: the second step of a 2-D transform whose rows were transformed by
+    halves (:func:`rfft2_first`'s, with the first step elsewhere), by halves of the columns on the pool's
+    threads, else on this thread's workers (each column computed alike: the same numbers)."""
+    import scipy.fft
+
+    if pool is None or pool.threads < 2:
+        return scipy.fft.fft(rows, axis=0, workers=current_workers())
+    h = rows.shape[1] // 2
+    return np.concatenate(pool.map(lambda c0, c1: scipy.fft.fft(rows[:, c0:c1], axis=0, workers=1),
+                                   [(0, h), (h, rows.shape[1])]), axis=1)
 
 
 def _unpack_ccs(ccs: np.ndarray, cols: int) -> np.ndarray:
