@@ -304,6 +304,23 @@ def test_quantile_is_numpys(q):
         assert spectra._quantile_of([(v, *spectra._upper(v, q)) for v in pieces], q) == float(np.quantile(x, q))
 
 
+@pytest.mark.parametrize("q", [0.9, 0.5])
+def test_quantile_of_parts_with_any_bounds_is_numpys(q):
+    # each part keeps its values at or above its own bound; the order statistics are taken among those as they
+    # are, so a bound over the quantile (some value it left out lies over the k-th) must fall back to numpy's
+    rng = np.random.default_rng(11)
+    x = np.concatenate([rng.exponential(10.0, 40_000), rng.exponential(1.0, 50_000), np.full(5_000, 3.0)])
+    x = x.astype(np.float32)
+    want = float(np.quantile(x, q))
+    pieces = [x[:45_000], x[45_000:]]
+    for qa, qb in [(0.0, 0.0), (0.5, 0.8), (0.85, 0.2), (0.99, 0.5), (0.5, 0.999), (0.95, 0.95)]:
+        parts = []
+        for v, qq in zip(pieces, (qa, qb), strict=True):
+            bound = float(np.quantile(v, qq))
+            parts.append((v.copy(), bound, v[v >= bound].copy()))
+        assert spectra._quantile_of(parts, q) == want, (qa, qb)
+
+
 @pytest.mark.parametrize("linear_power,size", [(True, 256), (False, 256), (True, 151)])
 def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
     # prepare(pool=) computes the 2 x 2 mean and the threshold, dB, taper and window in two halves of rows on the

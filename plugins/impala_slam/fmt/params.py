@@ -47,6 +47,15 @@ class FmtImage:
     half_spectra: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
     # the rotation's spectrum of the polar image folded onto half a turn (_folded_spectrum)
     folded: np.ndarray | None = field(default=None, repr=False, compare=False)
+    # whether a cell of the image is not 0 (None: not known yet, see any_cell)
+    nonzero: bool | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def any_cell(self) -> bool:
+        """``np.any(image)``, taken once per image (:func:`prepare` knows it from its halves of rows)."""
+        if self.nonzero is None:
+            self.nonzero = bool(np.any(self.image))
+        return self.nonzero
 
     @property
     def nbytes(self) -> int:
