@@ -204,7 +204,16 @@ from .correlation import (
 )
 from .parallel import TaskPool
 from .params import FmtImage, FmtParams, FmtResult
-from .spectra import call_with, half_image, image_spectrum, low_pass, polar_spectrum, prepare, warm_up
+from .spectra import (
+    call_with,
+    folded_spectrum,
+    half_image,
+    image_spectrum,
+    low_pass,
+    polar_spectrum,
+    prepare,
+    warm_up,
+)
 from .transforms import batch_scope, columns_fft, fft_workers, hann_window, in_batch, rfft2_first, unpack_rows
 
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
@@ -216,7 +225,7 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     normalised curvature of the peak (1 / bins^2)."""
     # centro-symmetric spectrum: fold the two half turns (period 180 deg), less noise
     half = p.angles // 2
-    fa, fb = _folded_spectrum(a, half), _folded_spectrum(b, half)
+    fa, fb = folded_spectrum(a, half), folded_spectrum(b, half)
     cross = np.sum(fb * np.conj(fa), axis=1)  # summed over the radii: zero radial shift (no scale)
     cross /= np.maximum(np.abs(cross), 1e-30)
     import scipy.fft
@@ -233,16 +242,6 @@ def _rotation(a: FmtImage, b: FmtImage, p: FmtParams) -> tuple[float, float, flo
     # |F_b|(w) = |F_a|(R(theta) w): b's polar rows are a's shifted by -theta
     theta = -math.radians(shift * 360.0 / p.angles)
     return theta, snr, curv
-
-
-def _folded_spectrum(img: FmtImage, half: int) -> np.ndarray:
-    """The rfft along the angles of the image's polar spectrum folded onto half a turn: once per
-    image (kept in :attr:`FmtImage.folded`), not once per registration it is in."""
-    if img.folded is None or img.folded.shape[0] != half // 2 + 1:
-        import scipy.fft
-
-        img.folded = scipy.fft.rfft(img.polar[:half] + img.polar[half:2 * half], axis=0, workers=1)
-    return img.folded
 
 
 def _derotate(img: np.ndarray, theta: float, interp: int = cv2.INTER_LINEAR, r0: int = 0,
@@ -296,13 +295,11 @@ def _register(a: FmtImage, b: FmtImage, p: FmtParams, prior_theta_rad: float | N
               pool: TaskPool | None) -> FmtResult:
     if not (a.any_cell and b.any_cell):
         return FmtResult(0.0, 0.0, 0.0, np.diag([1e6, 1e6, 10.0]), reason="empty image")
-    if pool is not None and pool.threads > 1:
-        # the rotation (this thread) and what the translations need of the pair whatever the rotation
-        # (another): independent, the same numbers in either order
-        (theta0, snr_r, curv_r), tr = pool.map(call_with, [(_rotation, a, b, p), (_translator, a, b, p, pool)])
-    else:
-        theta0, snr_r, curv_r = _rotation(a, b, p)
-        tr = _Translator(a, b, p, pool)
+    # the rotation, then what the translations need of the pair whatever the rotation: from prepare()'s images both
+    # are ready but for a few products (the spectra, halved images and folded polar spectra computed there, beside
+    # each other), so on this thread (a hand-off to another would cost what it saves)
+    theta0, snr_r, curv_r = _rotation(a, b, p)
+    tr = _translator(a, b, p, pool)
     step = math.radians(p.refine_deg)
     first: dict[float, tuple] = {}
     if p.refine_deg > 0 and pool is not None and pool.threads > 1:

@@ -17,7 +17,7 @@ from .parallel import TaskPool
 from .params import FmtImage, FmtParams
 from .transforms import columns_fft, current_workers, fft_workers, hann_window, rfft2_first
 
-__all__ = ["prepare", "polar_spectrum", "warm_up"]
+__all__ = ["prepare", "polar_spectrum", "folded_spectrum", "warm_up"]
 
 
 _highpass: dict[int, np.ndarray] = {}
@@ -267,16 +267,37 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
                       nonzero=nonzero)
         if coarse_rows(n, lp, cols) is None:
             fi.polar = polar_spectrum(out, p, rf, pool)
+            folded_spectrum(fi, p.angles // 2)
             return fi
-        # on the coarse grid, the spectrum this image will have as the older one of the next pair, beside its
-        # polar spectrum (the same numbers as computed then: scipy.fft's, here rather than beside the rotation)
+        # on the coarse grid, the spectrum this image will have as the older one of the next pair (its halved
+        # image with it) beside its polar spectrum and the rotation's folded one (the same numbers as computed then,
+        # scipy.fft's; here rather than beside the rotation)
         if pool:
-            fi.polar = pool.map(call_with, [(polar_spectrum, out, p, rf, pool), (image_spectrum, fi, cols, True)])[0]
+            pool.map(call_with, [(_polar_folded, fi, out, p, rf), (image_spectrum, fi, cols, True)])
         else:
-            fi.polar = polar_spectrum(out, p, rf)
+            _polar_folded(fi, out, p, rf)
             image_spectrum(fi, cols, True)
         return fi
-    return FmtImage(out, polar_spectrum(out, p), p.cell_m, nonzero=nonzero)
+    fi = FmtImage(out, polar_spectrum(out, p), p.cell_m, nonzero=nonzero)
+    folded_spectrum(fi, p.angles // 2)
+    return fi
+
+
+def _polar_folded(fi: FmtImage, img: np.ndarray, p: FmtParams, rf: np.ndarray) -> None:
+    """The image's polar spectrum (:func:`polar_spectrum`, on this thread) and its folded transform
+    (:func:`folded_spectrum`) into ``fi``."""
+    fi.polar = polar_spectrum(img, p, rf)
+    folded_spectrum(fi, p.angles // 2)
+
+
+def folded_spectrum(img: FmtImage, half: int) -> np.ndarray:
+    """The rfft along the angles of the image's polar spectrum folded onto half a turn (the rotation's, steps 6-9):
+    once per image (kept in :attr:`FmtImage.folded`), not once per registration it is in."""
+    if img.folded is None or img.folded.shape[0] != half // 2 + 1:
+        import scipy.fft
+
+        img.folded = scipy.fft.rfft(img.polar[:half] + img.polar[half:2 * half], axis=0, workers=1)
+    return img.folded
 
 
 def polar_spectrum(img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None,
