@@ -175,6 +175,26 @@ deg. Wall time per registration with its image's preparation (2 threads, the sam
 and after alternating 8 times on a host running 50-60 % slower than in the fifth round): median 23.61 -> 22.67 ms,
 the process's CPU 35.5 -> 34.1 ms.
 
+Fewer hand-offs (sixth round, second part). On a loaded 2-core VM a hand-off to the other thread cost 0.3-0.7 ms
+(the other virtual CPU had to be woken), against 35 us on an idle one, so the steps under a millisecond stay on the
+calling thread, which supersedes the rules of "Threads" and "Transforms" above: every 2-D transform of an image of
+even sides is ``cv2.dft``'s on the thread that needs it (the inverse at 256 x 256 0.52 ms against 1.22 ms for
+scipy.fft's on two threads, 1.58 against 2.80 ms at 400 x 400, loaded; as fast when the cores are idle); a whitening
+outside the batches is done whole (0.28 against 0.97 ms in halves at 256 x 128); register's scipy.fft transforms
+(the translation returned's columns) run on one thread (0.79 against 1.05 ms on two, 1.35 ms by halves on the
+pool). What stays on the pool takes a millisecond or more a task: the candidates and the refinement's pairs, the
+preparation's warp, threshold and window by halves, the translation returned's warp and row transforms by halves
+(without those halves, +1 ms a turn). The rotation and the pair's set-up run on the calling thread, the image's
+folded polar spectrum having been computed in prepare beside its coarse spectrum. The transforms that moved from
+scipy.fft to cv2.dft sum in another order (float32 rounding): the registrations of 59 RADIATE and 39 campus turns
+move by at most 1.8 um and 1.5e-6 deg, the same with 1 thread or 2; the RADIATE head's FMT ATE through
+graphs/oxford.yaml 3.7104163 -> 3.7104195 m, its pairs 9.623556 -> 9.623555 cm; Oxford's ATE 0.0870515 -> 0.0870514
+m; graphs/fmt_ekf_navtech.yaml on the RADIATE head EKF / iSAM2 / LM 1.0098277 / 1.0095174 / 1.0095222 ->
+1.0098289 / 1.0095186 / 1.0095233 m; campus-open 60 s seeds 29, 31, 41, 13, 47, 53 FMT ATE summed 2.1341981 ->
+2.1341982 m. Wall per registration with its preparation, in-process A/B (both trees loaded in one process, turns
+interleaved, order alternating; a control of one tree against itself within 0.2 ms), loaded host: RADIATE -0.77 ms
+median per turn (77 % of 354 turns faster), campus -2.2 to -3.0 ms (73-75 % of 156).
+
 Where the code is: :mod:`impala_slam.fmt.params` (FmtParams, FmtImage, FmtResult), :mod:`impala_slam.fmt.spectra`
 (the preparation, steps 1-5, and an image's spectra), :mod:`impala_slam.fmt.correlation` (the phase correlation,
 its peak, Hessian and SNR), :mod:`impala_slam.fmt.transforms` (the 2-D transforms, the Hann window), this module
@@ -214,7 +234,7 @@ from .spectra import (
     prepare,
     warm_up,
 )
-from .transforms import batch_scope, columns_fft, fft_workers, hann_window, in_batch, rfft2_first, unpack_rows
+from .transforms import columns_fft, fft_workers, hann_window, rfft2_first, unpack_rows
 
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
            "phase_correlation", "warm_up"]
@@ -275,7 +295,7 @@ def _halves_spectrum(img: np.ndarray, theta: float, cols: int, pool: TaskPool | 
 
     h = n // 2
     parts = pool.map(half, [(0, h), (h, n)]) if pool is not None else [half(0, h), half(h, n)]
-    return columns_fft(np.concatenate(parts))  # scipy.fft's workers, as before (the pool's halves: not timed here)
+    return columns_fft(np.concatenate(parts))  # scipy.fft's, on this thread (register's fft_workers(1))
 
 
 def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
@@ -287,7 +307,7 @@ def register(a: FmtImage, b: FmtImage, params: FmtParams | None = None,
     correlations that do not depend on each other (the two candidates, each refinement step's
     two neighbours, each transform of the others on the pool's threads too); the same result, bit for
     bit, with or without."""
-    with fft_workers(pool.threads if pool is not None else 1):
+    with fft_workers(1):
         return _register(a, b, params or FmtParams(), prior_theta_rad, pool)
 
 
@@ -400,46 +420,35 @@ class _Translator:
         the full grid's spectra (on the coarse grid: the translation :func:`register` returns)."""
         if fb is None:
             fb = self.spectrum(theta, fine)
-        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t; alone (not a batch's task): the whitening in halves
-        pool = None if in_batch() else self.pool
+        # j(q) = b(R^T q) = a(q + t): j is a shifted by -t
         if self.rows is None:
-            dy, dx, snr, h = surface_peak(*correlate_sums(self.fa, fb, self.weight, self.b.image.shape, pool))
+            dy, dx, snr, h = surface_peak(*correlate_sums(self.fa, fb, self.weight, self.b.image.shape))
         elif fine:
-            dy, dx, snr, h = coarse_peak(self.fa_fine, fb, self.weight, self.n, pool=pool)
+            dy, dx, snr, h = coarse_peak(self.fa_fine, fb, self.weight, self.n)
         else:  # the search on the halved images: only the SNR is used (the translation is then final()'s)
-            dy, dx, snr, h = coarse_peak(self.fa, fb, self.weight, self.n, fit=False, pool=pool)
+            dy, dx, snr, h = coarse_peak(self.fa, fb, self.weight, self.n, fit=False)
         return snr, theta, -dx * self.p.cell_m, -dy * self.p.cell_m, h
 
     def candidates(self, theta: float, beside: bool = False) -> list[tuple]:
         """The two candidates' translations, theta and theta + pi (the second from the first's spectrum, conjugated:
-        no warp nor transform of its own): the spectrum as a lone transform (scipy.fft's, the same numbers on any
-        number of workers), the two translations as a batch (:meth:`translations`). ``beside``: a task beside
-        another on the pool's threads: the spectrum on this thread alone and the batch one after the other
-        (:meth:`in_turn`, the same numbers)."""
-        if not beside:
-            fb = self.spectrum(theta)
-            return self.translations([(theta, fb), (theta + math.pi, np.conj(fb))])
-        with fft_workers(1):
-            fb = self.spectrum(theta)
-        return self.in_turn([(theta, fb), (theta + math.pi, np.conj(fb))])
+        no warp nor transform of its own): the spectrum on this thread, the two translations as a batch
+        (:meth:`translations`). ``beside``: a task beside another on the pool's threads: the two one after the
+        other on this thread (:meth:`in_turn`, the same numbers)."""
+        fb = self.spectrum(theta)
+        batch = [(theta, fb), (theta + math.pi, np.conj(fb))]
+        return self.in_turn(batch) if beside else self.translations(batch)
 
     def in_turn(self, batch: list[tuple]) -> list[tuple]:
-        """:meth:`translation` of each of the batch one after the other on this thread, each as a batch's task
-        (the same numbers as :meth:`translations`)."""
-        with fft_workers(1), batch_scope():
-            return [self.translation(*args) for args in batch]
+        """:meth:`translation` of each of the batch one after the other on this thread (the same numbers as
+        :meth:`translations`)."""
+        return [self.translation(*args) for args in batch]
 
     def translations(self, batch: list[tuple]) -> list[tuple]:
         """:meth:`translation` of each ``(theta, fb)`` of the batch, in order (on the pool's threads:
         each is computed from this pair's images alone, so in any order, the same numbers)."""
         if self.pool is None:
-            with batch_scope():
-                return [self.translation(*args) for args in batch]
-        return self.pool.map(self._one_thread, batch)
-
-    def _one_thread(self, *args: object) -> tuple:
-        with fft_workers(1), batch_scope():  # the batch's tasks share the threads: one each
-            return self.translation(*args)  # type: ignore[arg-type]
+            return self.in_turn(batch)
+        return self.pool.map(self.translation, batch)
 
     def final(self, theta: float, cand: tuple | None = None) -> tuple:
         """The translation returned at rotation theta: on the coarse grid, from the full grid's

@@ -262,7 +262,7 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         # rfft2_first's (scipy.fft, cv=False), its rows transformed by halves beside the window above, its
         # columns by halves here (each column computed alike: the same numbers)
         rows = rows[0] if len(rows) == 1 else np.concatenate(rows)
-        rf = columns_fft(rows, pool if split else None)
+        rf = columns_fft(rows)
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])},
                       nonzero=nonzero)
         if coarse_rows(n, lp, cols) is None:
