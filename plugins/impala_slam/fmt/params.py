@@ -45,7 +45,7 @@ class FmtImage:
     # the image on the coarse grid (half_image) and its spectrum by number of columns kept
     half: np.ndarray | None = field(default=None, repr=False, compare=False)
     half_spectra: dict[int, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
-    # the rotation's spectrum of the polar image folded onto half a turn (_folded_spectrum)
+    # the rotation's spectrum of the polar image folded onto half a turn (spectra.folded_spectrum)
     folded: np.ndarray | None = field(default=None, repr=False, compare=False)
     # whether a cell of the image is not 0 (None: not known yet, see any_cell)
     nonzero: bool | None = field(default=None, repr=False, compare=False)

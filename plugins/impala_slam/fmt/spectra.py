@@ -260,7 +260,7 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         # the windowed image's rfft2 serves twice: the polar spectrum's magnitude and, when this
         # image is the older one of a pair, the translation's spectrum on the full grid (image_spectrum):
         # rfft2_first's (scipy.fft, cv=False), its rows transformed by halves beside the window above, its
-        # columns by halves here (each column computed alike: the same numbers)
+        # columns here on scipy.fft's workers (each column computed alike: the same numbers)
         rows = rows[0] if len(rows) == 1 else np.concatenate(rows)
         rf = columns_fft(rows)
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])},
@@ -270,8 +270,8 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             folded_spectrum(fi, p.angles // 2)
             return fi
         # on the coarse grid, the spectrum this image will have as the older one of the next pair (its halved
-        # image with it) beside its polar spectrum and the rotation's folded one (the same numbers as computed then,
-        # scipy.fft's; here rather than beside the rotation)
+        # image with it) beside its polar spectrum and the rotation's folded one (the same numbers as computed
+        # then; here rather than beside the rotation)
         if pool:
             pool.map(call_with, [(_polar_folded, fi, out, p, rf), (image_spectrum, fi, cols, True)])
         else:
