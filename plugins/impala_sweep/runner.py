@@ -440,6 +440,22 @@ def _quiet_close() -> Iterator[None]:
         pass
 
 
+@contextlib.contextmanager
+def _leaked_sockets_collected() -> Iterator[None]:
+    """When the dashboard's port is taken between our check and Dask's bind (another sweep starting at the same
+    time), distributed binds another port but leaves the socket of its failed attempt open (node.py's retry): it
+    is collected here, silently, rather than reported as an unclosed socket wherever the collector next runs."""
+    import gc
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResourceWarning)
+        try:
+            yield
+        finally:
+            gc.collect()
+
+
 def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | None,
              threads_per_worker: int, board: tuple[str, int] | None) -> tuple[Any, Any, str]:
     """(client, local cluster or None, a description)."""
@@ -468,7 +484,7 @@ def _connect(scheduler: str | None, scheduler_file: str | None, workers: int | N
                 config["distributed.scheduler.dashboard.bokeh-application.allow_websocket_origin"] = [
                     f"{h}:{port}" for h in ("127.0.0.1", "localhost", host)]
         try:
-            with _children_ignore_sigint(), dask.config.set(config):
+            with _children_ignore_sigint(), dask.config.set(config), _leaked_sockets_collected():
                 # host: the scheduler, the nannies and the workers listen on the loopback interface only
                 cluster = LocalCluster(n_workers=n, threads_per_worker=threads_per_worker, processes=True,
                                        host="127.0.0.1", dashboard_address=address,

@@ -278,6 +278,36 @@ def http_port() -> Iterator[int]:
     server.server_close()
 
 
+def test_a_dashboard_port_taken_after_the_check_leaves_no_unclosed_socket(monkeypatch: pytest.MonkeyPatch) -> None:
+    # two sweeps starting at once both find the default port free; the second's Dask bind fails and distributed
+    # moves to another port, leaving the failed attempt's socket open: collected when the cluster is up, silently
+    # (before, an unclosed-socket warning surfaced in whatever ran next: a test failed in CI under -W error)
+    import gc
+    import warnings
+
+    from impala_sweep import runner
+
+    taken = socket.socket()
+    taken.bind(("127.0.0.1", 0))
+    taken.listen()
+    port = taken.getsockname()[1]
+    monkeypatch.setattr(runner, "_free_port", lambda host, p: True)  # free when checked, taken before the bind
+    client = cluster = None
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ResourceWarning)
+            client, cluster, _ = runner._connect(None, None, 1, 1, ("127.0.0.1", port))
+            gc.collect()
+        assert int(client.dashboard_link.split(":")[2].split("/")[0]) != port
+        assert [str(w.message) for w in caught if issubclass(w.category, ResourceWarning)] == []
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+        taken.close()
+
+
 def test_a_scheduler_address_that_is_not_dask_is_one_line(http_port: int, missions: list[Path],
                                                            write_sweep: Callable[..., Path], tmp_path: Path,
                                                            capsys: Any, monkeypatch: pytest.MonkeyPatch) -> None:
