@@ -37,13 +37,16 @@ Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once)
 - ``campus``: a simulated campus-open mission through the panoramic builder and the FMT
   registration (<= 15).
 
-The last line is one JSON object with every figure, keys naming the unit.
+The last line is one JSON object with every figure, keys naming the unit, and the host's speed before and after
+the sections (``host_probe_before_ms``, ``host_probe_after_ms``: one fixed OpenCV kernel, 0.73 ms on the README's
+machine in a quiet hour; a shared VM drifts by up to 70 % within minutes, so read a run's figures with it).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import resource
 import subprocess
@@ -497,7 +500,7 @@ def main(argv: list[str] | None = None) -> int:
     sections = [s for s in SECTIONS if s in args.only]
     if "import" not in sections and not Path(args.radiate_mission).exists():
         sections.insert(0, "import")
-    figures: dict[str, Any] = {}
+    figures: dict[str, Any] = {"host_probe_before_ms": _host_probe()}
     for s in sections:
         if s.startswith("radiate") and not Path(args.radiate_mission).exists():
             print(f"{s}: no imported RADIATE mission at {args.radiate_mission}, skipped")
@@ -522,9 +525,37 @@ def main(argv: list[str] | None = None) -> int:
         r = figures["rslam_radiate_ms_per_turn"] / figures["kissicp_radiate_ms_per_scan"]
         figures["rslam_over_kissicp_time_ratio"] = round(r, 2)
         print(f"  R-SLAM / kiss-icp time per turn: {r:.2f}")
+    figures["host_probe_after_ms"] = _host_probe()
+    print(f"  host probe (a 256 x 256 cubic warp on one thread; {QUIET_PROBE_MS} ms on the README's machine when "
+          f"quiet): {figures['host_probe_before_ms']} ms before the sections, {figures['host_probe_after_ms']} after")
     figures["cpus"] = os.cpu_count()
     print(json.dumps(figures))
     return 0
+
+
+QUIET_PROBE_MS = 0.73  # _host_probe() on the 2-core Xeon VM of the README's figures, in a quiet hour
+
+
+def _host_probe() -> float:
+    """The host's speed now: median ms of one fixed OpenCV kernel (a 256 x 256 float32 cubic rotation, one thread)
+    over 60 runs. A shared VM's speed drifts by up to 70 % within minutes; a run whose probe reads well over
+    :data:`QUIET_PROBE_MS` measured a slow host, not a slow tree."""
+    import cv2
+    import numpy as np
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        img = np.random.default_rng(0).random((256, 256), dtype=np.float32)
+        m = np.array([[math.cos(0.1), math.sin(0.1), 3.0], [-math.sin(0.1), math.cos(0.1), 2.0]])
+        times = []
+        for _ in range(60):
+            t0 = time.perf_counter()
+            cv2.warpAffine(img, m, (256, 256), flags=cv2.INTER_CUBIC + cv2.WARP_INVERSE_MAP)
+            times.append(time.perf_counter() - t0)
+        return round(1e3 * float(np.median(times)), 3)
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def _forward(args: argparse.Namespace) -> list[str]:
