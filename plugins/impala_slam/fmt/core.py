@@ -370,13 +370,11 @@ def register_grids(a: Grid, b: Grid, params: FmtParams | None = None, linear_pow
 
 
 def _translator(a: FmtImage, b: FmtImage, p: FmtParams, pool: TaskPool | None) -> _Translator:
-    """:class:`_Translator` of the pair with b on the coarse grid and a's full-grid spectrum on the
-    coarse rows (when the coarse grid is used): what does not depend on the rotation, ready before
-    the rotation is known."""
+    """:class:`_Translator` of the pair with b on the coarse grid (when the coarse grid is used; prepare() has
+    halved it already): halved here, not by both threads of the first batch at once."""
     tr = _Translator(a, b, p, pool)
     if tr.rows is not None:
         half_image(b)
-        tr.fa_fine  # noqa: B018 - computed here, beside the rotation
     return tr
 
 

@@ -266,8 +266,7 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
         fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, {cols: np.ascontiguousarray(rf[:, :cols])},
                       nonzero=nonzero)
         if coarse_rows(n, lp, cols) is None:
-            fi.polar = polar_spectrum(out, p, rf, pool)
-            folded_spectrum(fi, p.angles // 2)
+            _polar_folded(fi, out, p, rf, pool)
             return fi
         # on the coarse grid, the spectrum this image will have as the older one of the next pair (its halved
         # image with it) beside its polar spectrum and the rotation's folded one (the same numbers as computed
@@ -278,15 +277,16 @@ def _prepare(grid: Grid, p: FmtParams, linear_power: bool, pool: TaskPool | None
             _polar_folded(fi, out, p, rf)
             image_spectrum(fi, cols, True)
         return fi
-    fi = FmtImage(out, polar_spectrum(out, p), p.cell_m, nonzero=nonzero)
-    folded_spectrum(fi, p.angles // 2)
+    fi = FmtImage(out, np.empty((0, 0), np.float32), p.cell_m, nonzero=nonzero)
+    _polar_folded(fi, out, p)
     return fi
 
 
-def _polar_folded(fi: FmtImage, img: np.ndarray, p: FmtParams, rf: np.ndarray) -> None:
-    """The image's polar spectrum (:func:`polar_spectrum`, on this thread) and its folded transform
-    (:func:`folded_spectrum`) into ``fi``."""
-    fi.polar = polar_spectrum(img, p, rf)
+def _polar_folded(fi: FmtImage, img: np.ndarray, p: FmtParams, rf: np.ndarray | None = None,
+                  pool: TaskPool | None = None) -> None:
+    """The image's polar spectrum (:func:`polar_spectrum`; ``pool``: its resampling by halves) and its folded
+    transform (:func:`folded_spectrum`) into ``fi``."""
+    fi.polar = polar_spectrum(img, p, rf, pool)
     folded_spectrum(fi, p.angles // 2)
 
 
