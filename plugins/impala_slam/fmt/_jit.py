@@ -1,14 +1,15 @@
 """The FMT's compiled loops (numba, ``cache=True``; imported at their first call, never with the
 plugin): the 2 x 2 mean of a grid, the same bits as the numpy formulation it replaces
 (``((x00 + x01) + (x10 + x11)) / 4`` in float32; tests/slam/test_fmt_core.py compares them); a spectrum
-packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout) and a spectrum's sum of squares (Parseval)."""
+packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout) and a spectrum's sum of squares (Parseval); the
+threshold, dB, taper and window of a prepared image in one pass."""
 
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-__all__ = ["mean2x2", "pack_ccs", "sum_sq"]
+__all__ = ["mean2x2", "over_level", "pack_ccs", "scatter_tapered", "sum_sq"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -75,3 +76,35 @@ def sum_sq(spec, n):  # pragma: no cover - compiled
             a = float(z.real) * float(z.real) + float(z.imag) * float(z.imag)
             s += a if j == 0 or 2 * j == n else 2.0 * a
     return s
+
+
+
+@numba.njit(cache=True, nogil=True)
+def over_level(img, level, linear, taper, out, idx, vals):  # pragma: no cover - compiled
+    """Step 2's first half in one pass: ``out`` set to 0, and the cells over ``level`` where the taper is not 0
+    listed (flat index in ``idx``, ``img / level`` (``linear``) or ``img - level`` in ``vals``, float32 as numpy
+    computes them with ``level`` a Python float). Returns how many."""
+    lv = np.float32(level)
+    cols = img.shape[1]
+    k = 0
+    for i in range(img.shape[0]):
+        for j in range(cols):
+            out[i, j] = 0
+            v = img[i, j]
+            if v > lv and taper[i, j] != 0:
+                idx[k] = i * cols + j
+                vals[k] = v / lv if linear else v - lv
+                k += 1
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def scatter_tapered(db, idx, taper, out):  # pragma: no cover - compiled
+    """``out.flat[idx] = db * taper.flat[idx]`` (float32); whether one is nonzero."""
+    o, t = out.reshape(-1), taper.reshape(-1)
+    nonzero = False
+    for m in range(idx.size):
+        v = db[m] * t[idx[m]]
+        o[idx[m]] = v
+        nonzero = nonzero or v != 0
+    return nonzero

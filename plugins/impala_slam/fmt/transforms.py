@@ -64,6 +64,13 @@ def rfft2_first(img: np.ndarray, cols: int, cv: bool = True) -> np.ndarray:
     return scipy.fft.fft(scipy.fft.rfft(img, axis=1, workers=w)[:, :cols], axis=0, workers=w)
 
 
+def rows_then_columns(img: np.ndarray, cols: int) -> np.ndarray:
+    """``scipy.fft.rfft2(img)``'s first ``cols`` columns (float32 image, even width), to float rounding, as
+    :func:`impala_slam.fmt.spectra.prepare` computes them by halves of rows: ``cv2.dft``'s transform of the rows
+    (3 x faster than scipy.fft's at 512 x 512 on one thread), unpacked, then :func:`columns_fft`."""
+    return columns_fft(unpack_rows(cv2.dft(img, flags=cv2.DFT_ROWS), cols))
+
+
 def columns_fft(rows: np.ndarray) -> np.ndarray:
     """``scipy.fft.fft(rows, axis=0)`` on :func:`current_workers`' threads: the second step of a 2-D transform
     whose rows were transformed by halves (:func:`rfft2_first`'s, with the first step elsewhere; each column
