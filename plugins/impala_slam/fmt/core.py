@@ -209,8 +209,10 @@ RADIATE head's FMT ATE through graphs/oxford.yaml 3.7104195 -> 3.7104283 m, its 
 31, 41, 13, 47, 53 FMT ATE summed 2.1341982 -> 2.1341996 m. Tried and not kept: the coarse search's bicubic rotation
 as three shears of 1-D cubic passes (Unser's; compiled): 1.9 against 1.1 ms at 256 cells and, on a synthetic
 pattern, a mean error of 0.035 against OpenCV's 0.021 (the x passes blur twice); the preparation's quarter-cell
-shift as a compiled bilinear pass: 0.91 against OpenCV's 0.51 ms a half; a 0.5 ms GIL switch interval in the graph
-run: FMT's median unchanged.
+shift as a compiled bilinear pass: 0.91 against OpenCV's 0.51 ms a half; the observed values gathered by a compiled
+pass: 0.37 against numpy's mask and selection's 0.32 ms a half; without a coarse grid (campus), the translation
+returned warped and its rows transformed by halves of rows on the pool as on the coarse grid: +0.3 to +0.8 ms a turn
+(in-process A/B, loaded); a 0.5 ms GIL switch interval in the graph run: FMT's median unchanged.
 
 Where the code is: :mod:`impala_slam.fmt.params` (FmtParams, FmtImage, FmtResult), :mod:`impala_slam.fmt.spectra`
 (the preparation, steps 1-5, and an image's spectra), :mod:`impala_slam.fmt.correlation` (the phase correlation,
