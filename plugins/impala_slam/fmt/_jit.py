@@ -1,8 +1,9 @@
 """The FMT's compiled loops (numba, ``cache=True``; imported at their first call, never with the
 plugin): the 2 x 2 mean of a grid, the same bits as the numpy formulation it replaces
 (``((x00 + x01) + (x10 + x11)) / 4`` in float32; tests/slam/test_fmt_core.py compares them); a spectrum
-packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout) and a spectrum's sum of squares (Parseval); the
-threshold, dB, taper and window of a prepared image in one pass."""
+packed for ``cv2.dft``'s real inverse (OpenCV's CCS layout) and a spectrum's sum of squares (Parseval); the two
+passes of a prepared image's threshold and taper around numpy's logarithm (the cells kept listed, then their tapered
+dB written back)."""
 
 from __future__ import annotations
 
@@ -76,7 +77,6 @@ def sum_sq(spec, n):  # pragma: no cover - compiled
             a = float(z.real) * float(z.real) + float(z.imag) * float(z.imag)
             s += a if j == 0 or 2 * j == n else 2.0 * a
     return s
-
 
 
 @numba.njit(cache=True, nogil=True)
