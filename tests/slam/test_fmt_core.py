@@ -356,3 +356,14 @@ def test_preparation_in_halves_of_rows_is_the_whole_images(linear_power, size):
     assert alone.spectra.keys() == halves.spectra.keys()
     for k in alone.spectra:
         np.testing.assert_array_equal(halves.spectra[k], alone.spectra[k])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shape", [(64, 64), (48, 63), (10, 8)])
+def test_rows_then_columns_is_scipys_rfft2(shape, dtype):
+    # prepare()'s transform (OpenCV's of the rows, scipy.fft's of the columns) is scipy.fft's rfft2 to float32
+    # rounding, whatever the image's type and width (an odd one: scipy.fft's alone)
+    x = np.random.default_rng(shape[1]).random(shape).astype(dtype)
+    got, want = transforms.rows_then_columns(x, 5), scipy.fft.rfft2(x)[:, :5]
+    assert got.shape == want.shape
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * float(np.abs(want).max()))
