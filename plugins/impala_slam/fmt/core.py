@@ -198,21 +198,22 @@ median per turn (77 % of 354 turns faster), campus -2.2 to -3.0 ms (73-75 % of 1
 Seventh round: the preparation's CPU. Measured on a quiet host (a fixed warp timing 0.67 ms against 0.73 in the
 fifth round's quiet hour), the sixth round's tree ran FMT through graphs/oxford.yaml at 16.3 ms a turn and on campus
 at 16.5: the hand-offs it removed cost little on an idle host, and in a graph the other components hold the second
-core, so a registration's wall time follows its CPU. The threshold, dB and taper are now one compiled pass listing
-the cells kept (numpy's logarithm of those only, so the same bits as numpy's formula; 0.45 against 1.1 ms at 512
-cells), and the windowed image's row transform is ``cv2.dft``'s (0.33 against 1.03 ms for scipy.fft's at 512 x 512),
-also when :func:`polar_spectrum` transforms an image itself (:func:`~impala_slam.fmt.transforms.rows_then_columns`).
-CPU per registration with its preparation on one thread, in-process A/B both orders: RADIATE -1.13 / -1.12 ms,
-campus -0.8 ms; on 2 threads the wall -0.85 ms. The rows' transform sums in another order (float32 rounding): the
-RADIATE head's FMT ATE through graphs/oxford.yaml 3.7104195 -> 3.7104283 m, its pairs 9.623555 -> 9.623544 cm and
-0.6636176 deg; Oxford's ATE 0.0870514 -> 0.0870513 m, its pairs 5.795946 -> 5.795938 cm; campus-open 60 s seeds 29,
-31, 41, 13, 47, 53 FMT ATE summed 2.1341982 -> 2.1341996 m. Tried and not kept: the coarse search's bicubic rotation
-as three shears of 1-D cubic passes (Unser's; compiled): 1.9 against 1.1 ms at 256 cells and, on a synthetic
-pattern, a mean error of 0.035 against OpenCV's 0.021 (the x passes blur twice); the preparation's quarter-cell
-shift as a compiled bilinear pass: 0.91 against OpenCV's 0.51 ms a half; the observed values gathered by a compiled
-pass: 0.37 against numpy's mask and selection's 0.32 ms a half; without a coarse grid (campus), the translation
-returned warped and its rows transformed by halves of rows on the pool as on the coarse grid: +0.3 to +0.8 ms a turn
-(in-process A/B, loaded); a 0.5 ms GIL switch interval in the graph run: FMT's median unchanged.
+core, so a registration's wall time follows its CPU. The threshold, dB and taper are now two compiled passes around
+numpy's logarithm of the cells kept, one listing them, the other writing their tapered dB back (the same bits as
+numpy's formula; 0.45 against 1.1 ms at 512 cells), and the windowed image's row transform is ``cv2.dft``'s (0.33
+against 1.03 ms for scipy.fft's at 512 x 512), also when :func:`polar_spectrum` transforms an image itself
+(:func:`~impala_slam.fmt.transforms.rows_then_columns`). CPU per registration with its preparation on one thread,
+in-process A/B both orders: RADIATE -1.13 / -1.12 ms, campus -0.8 ms; on 2 threads the wall -0.85 ms. The rows'
+transform sums in another order (float32 rounding): the RADIATE head's FMT ATE through graphs/oxford.yaml 3.7104195
+-> 3.7104283 m, its pairs 9.623555 -> 9.623544 cm and 0.6636176 deg; Oxford's ATE 0.0870514 -> 0.0870513 m, its
+pairs 5.795946 -> 5.795938 cm; campus-open 60 s seeds 29, 31, 41, 13, 47, 53 FMT ATE summed 2.1341982 -> 2.1341996
+m. Tried and not kept: the coarse search's bicubic rotation as three shears of 1-D cubic passes (Unser's; compiled):
+1.9 against 1.1 ms at 256 cells and, on a synthetic pattern, a mean error of 0.035 against OpenCV's 0.021 (the x
+passes blur twice); the preparation's quarter-cell shift as a compiled bilinear pass: 0.91 against OpenCV's 0.51 ms
+a half; the observed values gathered by a compiled pass: 0.37 against numpy's mask and selection's 0.32 ms a half;
+without a coarse grid (campus), the translation returned warped and its rows transformed by halves of rows on the
+pool as on the coarse grid: +0.3 to +0.8 ms a turn (in-process A/B, loaded); a 0.5 ms GIL switch interval in the
+graph run: FMT's median unchanged.
 
 Where the code is: :mod:`impala_slam.fmt.params` (FmtParams, FmtImage, FmtResult), :mod:`impala_slam.fmt.spectra`
 (the preparation, steps 1-5, and an image's spectra), :mod:`impala_slam.fmt.correlation` (the phase correlation,
