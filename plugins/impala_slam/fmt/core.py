@@ -254,7 +254,7 @@ from .spectra import (
     prepare,
     warm_up,
 )
-from .transforms import columns_fft, fft_workers, hann_window, rfft2_first, unpack_rows
+from .transforms import columns_fft, fft_workers, hann_window, rfft2_first, rows_fft
 
 __all__ = ["FmtParams", "FmtImage", "FmtResult", "prepare", "polar_spectrum", "register", "register_grids",
            "phase_correlation", "warm_up"]
@@ -311,7 +311,7 @@ def _halves_spectrum(img: np.ndarray, theta: float, cols: int, pool: TaskPool | 
     def half(r0: int, r1: int) -> np.ndarray:
         w = _derotate(img, theta, cv2.INTER_LINEAR, r0, r1)
         w *= hann[r0:r1]
-        return unpack_rows(cv2.dft(w, flags=cv2.DFT_ROWS), cols)
+        return rows_fft(w, cols)
 
     h = n // 2
     parts = pool.map(half, [(0, h), (h, n)]) if pool is not None else [half(0, h), half(h, n)]

@@ -71,8 +71,15 @@ def rows_then_columns(img: np.ndarray, cols: int) -> np.ndarray:
     :func:`columns_fft`; otherwise :func:`rfft2_first`'s scipy.fft."""
     if img.ndim != 2 or img.shape[1] % 2 or img.shape[1] < 4:
         return rfft2_first(img, cols, cv=False)
-    rows = np.ascontiguousarray(img, np.float32)
-    return columns_fft(unpack_rows(cv2.dft(rows, flags=cv2.DFT_ROWS), cols))
+    return columns_fft(rows_fft(np.ascontiguousarray(img, np.float32), cols))
+
+
+def rows_fft(img: np.ndarray, cols: int) -> np.ndarray:
+    """Each row's rfft, its first ``cols`` columns (complex64): ``cv2.dft``'s transform of the rows of a float32
+    image of even width, unpacked (:func:`unpack_rows`). Each row is computed alike in any batch of rows, so a
+    transform done by halves of rows gives the whole image's numbers (the first step of
+    :func:`rows_then_columns`, of the prepared image's spectrum and of the translation returned's)."""
+    return unpack_rows(cv2.dft(img, flags=cv2.DFT_ROWS), cols)
 
 
 def columns_fft(rows: np.ndarray) -> np.ndarray:
