@@ -48,13 +48,13 @@ def _even(shape: tuple[int, ...]) -> bool:
     return len(shape) == 2 and shape[0] % 2 == 0 and shape[1] % 2 == 0 and min(shape) >= 4
 
 
-def rfft2_first(img: np.ndarray, cols: int, cv: bool = True) -> np.ndarray:
+def rfft2_first(img: np.ndarray, cols: int) -> np.ndarray:
     """``scipy.fft.rfft2(img)``'s first ``cols`` columns, to float rounding: for a float32 image of even sides,
     ``cv2.dft``'s packed spectrum (CCS) unpacked to rfft2's layout on this thread (1.3-2.2 x faster than scipy.fft's
     on one thread at 256-512 cells, the unpacking included, and as fast as scipy.fft's on two; the same sums to
-    float32 rounding, 1e-7 of the largest coefficient); otherwise, or when not ``cv``, scipy.fft's on
+    float32 rounding, 1e-7 of the largest coefficient); otherwise scipy.fft's on
     :func:`current_workers`' threads: the real transform of the rows then the transform of the kept columns."""
-    if cv and img.dtype == np.float32 and _even(img.shape):
+    if img.dtype == np.float32 and _even(img.shape):
         return _unpack_ccs(cv2.dft(img), cols)
     import scipy.fft
 
@@ -70,7 +70,7 @@ def rows_then_columns(img: np.ndarray, cols: int) -> np.ndarray:
     transform of the rows in float32 (3 x faster than scipy.fft's at 512 x 512 on one thread), unpacked, then
     :func:`columns_fft`; otherwise :func:`rfft2_first`'s scipy.fft."""
     if img.ndim != 2 or img.shape[1] % 2 or img.shape[1] < 4:
-        return rfft2_first(img, cols, cv=False)
+        return rfft2_first(img, cols)  # not OpenCV's layout: scipy.fft's
     return columns_fft(rows_fft(np.ascontiguousarray(img, np.float32), cols))
 
 
