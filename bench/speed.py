@@ -40,8 +40,9 @@ Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once)
   registration (<= 15).
 
 The last line is one JSON object with every figure, keys naming the unit, and the host's speed before and after
-the sections (``host_probe_before_ms``, ``host_probe_after_ms``: one fixed OpenCV kernel, 0.73 ms on the README's
-machine in a quiet hour; a shared VM drifts by up to 70 % within minutes, so read a run's figures with it).
+the sections (``host_probe_before_ms``, ``host_probe_after_ms``: one fixed OpenCV kernel, 0.27 ms on the README's
+machine, an AMD EPYC, 0.73 on the Intel Xeon before it, in a quiet hour; a shared VM drifts by up to 70 % within
+minutes, so read a run's figures with it).
 """
 
 from __future__ import annotations
@@ -558,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-QUIET_PROBE_MS = 0.73  # _host_probe() on the 2-core Xeon VM of the README's figures, in a quiet hour
+QUIET_PROBE_MS = 0.27  # _host_probe() on the 2-core AMD EPYC VM of the README's figures (the Xeon before it: 0.73)
 
 
 def _host_probe() -> float:
