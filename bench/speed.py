@@ -42,7 +42,8 @@ Sections and targets (a Navtech turns 4 times per second, the IMPALA radar once)
 The last line is one JSON object with every figure, keys naming the unit, and the host's speed before and after
 the sections (``host_probe_before_ms``, ``host_probe_after_ms``: one fixed OpenCV kernel, 0.27 ms on the README's
 machine, an AMD EPYC, 0.73 on the Intel Xeon before it, in a quiet hour; a shared VM drifts by up to 70 % within
-minutes, so read a run's figures with it).
+minutes, so read a run's figures with it), and the machine (``cpus``; ``cpu_model``, with its widest vector unit:
+the results' last bits depend on it).
 """
 
 from __future__ import annotations
@@ -555,11 +556,28 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  host probe (a 256 x 256 cubic warp on one thread; {QUIET_PROBE_MS} ms on the README's machine when "
           f"quiet): {figures['host_probe_before_ms']} ms before the sections, {figures['host_probe_after_ms']} after")
     figures["cpus"] = os.cpu_count()
+    figures["cpu_model"] = _cpu_model()
+    print(f"  machine: {figures['cpu_model']}, {figures['cpus']} CPUs")
     print(json.dumps(figures))
     return 0
 
 
 QUIET_PROBE_MS = 0.27  # _host_probe() on the 2-core AMD EPYC VM of the README's figures (the Xeon before it: 0.73)
+
+
+def _cpu_model() -> str:
+    """The CPU's model name and its widest vector unit (the results' last bits depend on it: OpenCV, NumPy and
+    pocketfft pick their kernels by it), from /proc/cpuinfo; ``platform.processor()`` elsewhere."""
+    import platform
+
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return platform.processor() or platform.machine()
+    model = next((ln.split(":", 1)[1].strip() for ln in info.splitlines() if ln.startswith("model name")), "")
+    flags = next((ln.split(":", 1)[1].split() for ln in info.splitlines() if ln.startswith("flags")), [])
+    simd = next((f for f in ("avx512f", "avx2", "avx", "sse4_2", "asimd") if f in flags), "")
+    return f"{model or platform.machine()}{f' ({simd})' if simd else ''}"
 
 
 def _host_probe() -> float:
