@@ -168,10 +168,9 @@ def test_coarse_search_and_the_translation_returned():
     assert tr.rows is not None
     theta = math.radians(4.0)
     hann = transforms.hann_window(a.image.shape)
-    # the older one's as prepare() computes it: OpenCV's transform of the rows, scipy.fft's of the kept columns;
+    # the older one's as prepare() computes it (OpenCV's transform of the rows, scipy.fft's of the kept columns):
     # scipy.fft's rfft2 to float rounding
-    fa = scipy.fft.fft(transforms.unpack_rows(cv2.dft(a.image * hann, flags=cv2.DFT_ROWS), tr.cols), axis=0)
-    fa = fa[tr.rows]
+    fa = transforms.rows_then_columns(a.image * hann, tr.cols)[tr.rows]
     whole = scipy.fft.rfft2(a.image * hann)[:, :tr.cols][tr.rows]
     np.testing.assert_allclose(fa, whole, rtol=0, atol=1e-6 * float(np.abs(whole).max()))
     fb = tr.spectrum(theta, fine=True)
